@@ -1,0 +1,50 @@
+// prtbake/atomic_file.h: outputs appear whole or not at all.
+//
+// Data goes to a temp file in the destination's directory (".<name>.prtbake-tmp.<pid>.<n>");
+// commit() flushes, fsyncs and renames it over the destination, then fsyncs the
+// directory. An AtomicFile destroyed without commit() removes its temp file, so a
+// failed job leaves nothing behind. A killed process may leave a temp file; the
+// names are recognisable so that the next run can remove them
+// (removeStaleTempFiles).
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace prtbake {
+
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::string path);
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  void write(const void* data, size_t bytes);
+  void write(const std::string& text) { write(text.data(), text.size()); }
+  // Makes the file visible at its final path. Throws OutputError on failure.
+  void commit();
+
+  const std::string& path() const { return path_; }
+  const std::string& tempPath() const { return tempPath_; }
+
+ private:
+  std::string path_, tempPath_;
+  int fd_ = -1;
+  bool committed_ = false;
+};
+
+// Writes `text` to `path` atomically.
+void writeFileAtomic(const std::string& path, const std::string& text);
+
+// Removes temp files left in `dir` by killed runs of this tool (owned by a
+// process that no longer exists). Returns how many were removed.
+int removeStaleTempFiles(const std::string& dir);
+
+// Reads a whole file; throws InputError naming the file when it cannot be read.
+std::string readFile(const std::string& path);
+
+// The library version, e.g. "0.1.0".
+const char* version();
+
+}  // namespace prtbake

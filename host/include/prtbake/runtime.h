@@ -1,0 +1,88 @@
+// prtbake/runtime.h: the OpenCL side of the library.
+//
+// A Runtime owns one context, one in-order queue on one device, and a cache of
+// built programs keyed by (kernel file, build options). Create one per process
+// (or per batch run) and pass it to every product call; building a program is
+// the expensive step (~1 s cold on PoCL, ~40 ms from PoCL's own disk cache).
+#pragma once
+
+#ifndef CL_HPP_ENABLE_EXCEPTIONS
+#define CL_HPP_ENABLE_EXCEPTIONS
+#endif
+#ifndef CL_HPP_TARGET_OPENCL_VERSION
+#define CL_HPP_TARGET_OPENCL_VERSION 120
+#endif
+#ifndef CL_HPP_MINIMUM_OPENCL_VERSION
+#define CL_HPP_MINIMUM_OPENCL_VERSION 120
+#endif
+#include <CL/opencl.hpp>
+
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace prtbake {
+
+struct DeviceInfo {
+  int index = 0;             // position in the flat list over all platforms
+  std::string platform;      // platform name, e.g. "Portable Computing Language"
+  std::string name;          // device name
+  std::string type;          // "cpu", "gpu" or "other"
+  unsigned computeUnits = 0;
+  unsigned long long globalMemBytes = 0;
+  bool fp64 = false;
+};
+
+// Every OpenCL device of every platform, in platform then device order.
+std::vector<DeviceInfo> listDevices();
+
+// Resolves a device specification: "auto" (a GPU if any, else the first CPU),
+// "cpu", "gpu", or a decimal index into listDevices(). An empty spec reads the
+// PRTBAKE_DEVICE environment variable, then falls back to "auto".
+// Throws UsageError for a malformed spec, DeviceError when nothing matches.
+int resolveDevice(const std::string& spec);
+
+// Text of a kernel file with its #include "x.clh" lines expanded and #line
+// directives inserted, from the sources embedded at build time, or from the
+// directory in PRTBAKE_KERNEL_DIR when that is set (development override).
+std::string kernelSource(const std::string& file);
+
+class Runtime {
+ public:
+  explicit Runtime(const std::string& deviceSpec = "");
+
+  const cl::Context& context() const { return context_; }
+  const cl::Device& device() const { return device_; }
+  cl::CommandQueue& queue() { return queue_; }
+  const DeviceInfo& info() const { return info_; }
+  // "<device name> (<platform name>)", used in logs, sidecars and errors.
+  std::string deviceLabel() const;
+
+  // The program built from `file` with `options`, built once per runtime.
+  // A build failure throws DeviceError carrying the device name and build log.
+  cl::Program program(const std::string& file, const std::string& options = "");
+  cl::Kernel kernel(const std::string& file, const std::string& name,
+                    const std::string& options = "");
+
+  // Seconds spent building programs so far (cold-build cost is reported apart
+  // from kernel time in benchmarks and sidecars).
+  double buildSeconds() const { return buildSeconds_; }
+
+  // Largest work-group size the device accepts for a 1-D launch.
+  size_t maxWorkGroupSize() const;
+
+ private:
+  DeviceInfo info_;
+  cl::Device device_;
+  cl::Context context_;
+  cl::CommandQueue queue_;
+  std::map<std::string, cl::Program> programs_;
+  std::mutex mutex_;
+  double buildSeconds_ = 0.0;
+};
+
+// Converts an OpenCL error code into its symbolic name ("CL_OUT_OF_RESOURCES").
+const char* clErrorName(int code);
+
+}  // namespace prtbake

@@ -1,0 +1,49 @@
+// prtbake/sh.h: real spherical harmonics, double-precision reference.
+//
+// Conventions (fixed, see DESIGN.md): real, orthonormal (∫ Y_i Y_j dω = δ_ij),
+// Condon–Shortley phase, evaluated on a unit direction (x, y, z) of the input's
+// world frame; index i = l(l+1) + m; "order n" means bands 0..n-1, n² coefficients.
+//
+//   Y_l0  =    Q_l^m                with Q_l^m = K_l^m P_l^m(z) / sin^m θ
+//   Y_lm  = √2 Q_l^m Re (x + i y)^m  (m > 0)
+//   Y_l-m = √2 Q_l^m Im (x + i y)^m  (m > 0)
+// since sin^m θ e^{imφ} = (x + i y)^m. Q follows the stable three-term
+// recurrence of the normalised associated Legendre functions (no factorials):
+//   Q_0^0 = 1/√(4π),  Q_m^m = −√((2m+1)/(2m)) Q_{m−1}^{m−1},  Q_{m+1}^m = √(2m+3) z Q_m^m,
+//   Q_l^m = a_lm (z Q_{l−1}^m − b_lm Q_{l−2}^m),
+//   a_lm = √((4l²−1)/(l²−m²)),  b_lm = √(((l−1)²−m²)/(4(l−1)²−1)).
+// It is exact at the poles ((x + i y)^m = 0 for m > 0) and needs no atan2.
+#pragma once
+
+#include <array>
+#include <vector>
+
+namespace prtbake {
+
+// Orders accepted by every product (1..kMaxShOrder). 32 orders = 1024 coefficients.
+constexpr int kMaxShOrder = 32;
+// Orders up to this one use hard-coded polynomials (bands 0..3).
+constexpr int kHardcodedShOrder = 4;
+
+constexpr int shIndex(int l, int m) { return l * (l + 1) + m; }
+constexpr int shCount(int order) { return order * order; }
+
+// All n² basis functions at the unit direction (x, y, z); picks the hard-coded
+// polynomials up to order 4 and the recurrence above.
+void shEval(int order, double x, double y, double z, double* out);
+// Hard-coded polynomials, order 1..4.
+void shEvalHardcoded(int order, double x, double y, double z, double* out);
+// The recurrence, any order 1..kMaxShOrder (and beyond: it is stable).
+void shEvalRecurrence(int order, double x, double y, double z, double* out);
+
+// Â_l of the clamped cosine max(0, cos θ): its zonal coefficient times √(4π/(2l+1)),
+// so that irradiance E_lm = Â_l L_lm. Â_0 = π, Â_1 = 2π/3, Â_l = 0 for odd l > 1,
+// Â_l = 2π (−1)^{l/2−1} / ((l+2)(l−1)) · l! / (2^l ((l/2)!)²) for even l.
+double clampedCosineFactor(int l);
+
+// The coefficients (zonal harmonic, index l(l+1)) of max(0, n·ω)/π rotated to
+// the unit normal n: T_i = Â_l/π · Y_i(n). This is the unshadowed transport of an
+// unoccluded vertex (Funk–Hecke), the oracle of the transport tests.
+std::vector<double> clampedCosineProjected(int order, double nx, double ny, double nz);
+
+}  // namespace prtbake
