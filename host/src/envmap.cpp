@@ -1,0 +1,92 @@
+// EnvMap geometry: cube face bases, texel directions and exact solid angles.
+#include <cmath>
+
+#include "prtbake/envmap.h"
+#include "prtbake/error.h"
+
+namespace prtbake {
+namespace {
+const double kPi = 3.14159265358979323846;
+
+// f(a, b) = atan2(ab, √(a²+b²+1)): the solid angle of the rectangle [0,a]×[0,b]
+// on the face plane at distance 1, with sign (Girard / the standard cube-map identity).
+double cornerArea(double a, double b) { return std::atan2(a * b, std::sqrt(a * a + b * b + 1.0)); }
+}  // namespace
+
+std::array<CubeFaceBasis, 6> standardCubeBases() {
+  return {{
+      {{0, 0, -1}, {0, -1, 0}, {1, 0, 0}},    // +X: (1, −v, −u)
+      {{0, 0, 1}, {0, -1, 0}, {-1, 0, 0}},    // −X: (−1, −v, u)
+      {{1, 0, 0}, {0, 0, 1}, {0, 1, 0}},      // +Y: (u, 1, v)
+      {{1, 0, 0}, {0, 0, -1}, {0, -1, 0}},    // −Y: (u, −1, −v)
+      {{1, 0, 0}, {0, -1, 0}, {0, 0, 1}},     // +Z: (u, −v, 1)
+      {{-1, 0, 0}, {0, -1, 0}, {0, 0, -1}},   // −Z: (−u, −v, −1)
+  }};
+}
+
+double cubeTexelSolidAngle(int n, int row, int col) {
+  const double u0 = 2.0 * col / n - 1.0, u1 = 2.0 * (col + 1) / n - 1.0;
+  const double v0 = 2.0 * row / n - 1.0, v1 = 2.0 * (row + 1) / n - 1.0;
+  return cornerArea(u0, v0) - cornerArea(u0, v1) - cornerArea(u1, v0) + cornerArea(u1, v1);
+}
+
+void texelDirection(const EnvMap& env, size_t index, double d[3], double* solidAngleSr) {
+  double x, y, z;
+  if (env.layout == EnvLayout::Cube) {
+    const size_t n = size_t(env.width);
+    const int face = int(index / (n * n));
+    const int row = int((index / n) % n), col = int(index % n);
+    const double u = 2.0 * (col + 0.5) / double(n) - 1.0, v = 2.0 * (row + 0.5) / double(n) - 1.0;
+    const auto& b = env.faces[size_t(face)];
+    x = u * b.axisU[0] + v * b.axisV[0] + b.axisN[0];
+    y = u * b.axisU[1] + v * b.axisV[1] + b.axisN[1];
+    z = u * b.axisU[2] + v * b.axisV[2] + b.axisN[2];
+    const double inv = 1.0 / std::sqrt(x * x + y * y + z * z);
+    x *= inv, y *= inv, z *= inv;
+    if (solidAngleSr) *solidAngleSr = cubeTexelSolidAngle(int(n), row, col);
+  } else {
+    const size_t w = size_t(env.width), h = size_t(env.height);
+    const size_t row = index / w, col = index % w;
+    const double lambda = -2.0 * kPi * ((double(col) + 0.5) / double(w) - 0.5);
+    const double phi = kPi * (0.5 - (double(row) + 0.5) / double(h));
+    x = std::sin(lambda) * std::cos(phi);
+    y = std::sin(phi);
+    z = std::cos(lambda) * std::cos(phi);
+    if (solidAngleSr) {
+      const double top = kPi * (0.5 - double(row) / double(h)), bottom = kPi * (0.5 - double(row + 1) / double(h));
+      *solidAngleSr = (2.0 * kPi / double(w)) * (std::sin(top) - std::sin(bottom));
+    }
+  }
+  // Rotation about +Y by yaw: (x, z) → (x cos + z sin, −x sin + z cos).
+  const double yaw = env.yawDegrees * kPi / 180.0, c = std::cos(yaw), s = std::sin(yaw);
+  d[0] = c * x + s * z;
+  d[1] = y;
+  d[2] = -s * x + c * z;
+}
+
+void validateEnvironment(EnvMap& env, bool clampInvalid) {
+  const std::string& src = env.source.empty() ? std::string("environment") : env.source;
+  if (env.width <= 0 || env.height <= 0) throw InputError(src, "empty image");
+  if (env.layout == EnvLayout::Cube && env.width != env.height)
+    throw InputError(src, "cube faces must be square");
+  if (env.layout == EnvLayout::LatLong && env.width != 2 * env.height)
+    throw InputError(src, "a lat-long map must be twice as wide as high (got " + std::to_string(env.width) +
+                              "x" + std::to_string(env.height) + ")");
+  if (env.rgb.size() != env.texelCount() * 3) throw InputError(src, "pixel data has the wrong size");
+  long long bad = 0, nonFinite = 0;
+  for (float& v : env.rgb) {
+    if (!(v >= 0.0f) || std::isinf(v)) {
+      ++bad;
+      if (!std::isfinite(v)) ++nonFinite;
+      if (clampInvalid) v = 0.0f;
+    }
+  }
+  if (bad == 0) return;
+  if (!clampInvalid)
+    throw InputError(src, std::to_string(bad) + " invalid values (" + std::to_string(nonFinite) +
+                              " NaN/Inf, " + std::to_string(bad - nonFinite) +
+                              " negative); use --clamp-invalid to replace them by 0");
+  env.clampedTexels += bad;
+}
+
+}  // namespace prtbake
