@@ -1,0 +1,82 @@
+// prtbake/env_sh.h: projecting an environment onto SH, windowing, writing.
+//
+// Radiance coefficients: L_i = Σ_texels L(ω_t) Y_i(ω_t) Ω_t (exact texel solid
+// angles Ω_t, see envmap.h). Irradiance: E_i = Â_l L_i (Ramamoorthi & Hanrahan
+// 2001, Â from sh.h); irradiance_over_pi = E_i/π (the diffuse exit radiance for
+// albedo 1). Windows multiply band l by w_l before the quantity is formed.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "prtbake/envmap.h"
+#include "prtbake/runtime.h"
+
+namespace prtbake {
+
+enum class ShQuantity { Radiance, Irradiance, IrradianceOverPi };
+enum class ShWindow { None, Hann, Lanczos, Auto };
+
+const char* toString(ShQuantity q);
+const char* toString(ShWindow w);
+// Parse "radiance" etc.; throw UsageError naming the option on anything else.
+ShQuantity parseQuantity(const std::string& s);
+ShWindow parseWindow(const std::string& s);
+
+using Rgb = std::array<double, 3>;
+
+struct ShCoeffs {
+  int order = 0;               // n: bands 0..n-1
+  std::vector<Rgb> rgb;        // n² coefficients, index l(l+1)+m
+  ShQuantity quantity = ShQuantity::Radiance;
+};
+
+struct EnvProjectOptions {
+  int order = 3;                                    // 1..kMaxShOrder
+  ShQuantity quantity = ShQuantity::Radiance;
+  ShWindow window = ShWindow::None;
+};
+
+struct EnvProjectResult {
+  ShCoeffs coeffs;                 // after window and quantity
+  ShCoeffs radiance;               // unwindowed radiance coefficients
+  std::vector<double> windowWeights;  // w_l, l = 0..n-1 (all 1 for none)
+  double autoWindowLambda = 0.0;   // the Laplacian-window strength chosen by auto
+  double minIrradianceBefore = 0, minIrradianceAfter = 0;  // of the reconstruction (auto)
+  double kernelSeconds = 0.0;      // device time of the projection kernels
+  double uploadSeconds = 0.0;
+  long long texels = 0;
+};
+
+// The OpenCL projection (work-item row partial sums in float, summed in double on the host).
+EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvProjectOptions& options);
+
+// Double-precision reference: every texel's direction, solid angle and Y in double.
+ShCoeffs projectEnvironmentReference(const EnvMap& env, int order);
+
+// Window weights w_l (l = 0..order-1) for none/hann/lanczos.
+std::vector<double> windowWeights(ShWindow w, int order);
+
+// Applies window weights and converts radiance → the requested quantity.
+ShCoeffs applyWindowAndQuantity(const ShCoeffs& radiance, const std::vector<double>& weights, ShQuantity q);
+
+// Sloan 2017-style deringing: the weakest Laplacian-penalty window
+// w_l = 1/(1 + λ (l(l+1))²) that makes the reconstructed irradiance non-negative
+// everywhere (each channel). Returns the weights; reports λ and the minima.
+std::vector<double> deringingWindow(const ShCoeffs& radiance, double* lambda, double* minBefore,
+                                    double* minAfter);
+
+// Evaluates Σ c_i Y_i(ω) for each channel at a unit direction.
+Rgb evalSh(const ShCoeffs& c, double x, double y, double z);
+
+// Writers. The JSON states the conventions (DESIGN.md "Outputs"); `meta` is
+// merged in (parameters, input hashes, timings; a JSON object as text).
+void writeShJson(const std::string& path, const ShCoeffs& c, const std::string& metaJson);
+// Reads a JSON written by writeShJson (for rotate). Throws InputError.
+ShCoeffs readShJson(const std::string& path, std::string* metaJson = nullptr);
+// GAMES202 light.txt: 9 lines of three numbers, single spaces, no trailing space (order 3 only:
+// higher orders write n² lines).
+void writeGames202Light(const std::string& path, const ShCoeffs& c);
+
+}  // namespace prtbake
