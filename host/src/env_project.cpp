@@ -1,0 +1,157 @@
+// Environment → SH: the OpenCL projection and its double-precision reference.
+#include <chrono>
+#include <cmath>
+
+#include "prtbake/env_sh.h"
+#include "prtbake/error.h"
+#include "prtbake/sh.h"
+
+namespace prtbake {
+namespace {
+
+const double kPi = 3.14159265358979323846;
+
+void checkOrder(int order) {
+  if (order < 1 || order > kMaxShOrder)
+    throw UsageError("--order", std::to_string(order) + " is out of range [1, " + std::to_string(kMaxShOrder) + "]");
+}
+
+// Vector width of the row loop: wide vectors while the accumulators fit in
+// registers or L1, scalar for high orders (private arrays of 3n² vectors would
+// be too large). Measured in bench/bench_env.cpp.
+int vectorWidth(const Runtime& rt, int order) {
+  if (rt.info().type == "gpu") return 1;  // one row per thread; SIMT lanes come from rows
+  if (order <= 4) return 16;
+  if (order <= 8) return 8;
+  return 1;
+}
+
+double eventSeconds(const cl::Event& e) {
+  const auto t0 = e.getProfilingInfo<CL_PROFILING_COMMAND_START>();
+  const auto t1 = e.getProfilingInfo<CL_PROFILING_COMMAND_END>();
+  return double(t1 - t0) * 1e-9;
+}
+
+}  // namespace
+
+EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvProjectOptions& options) {
+  checkOrder(options.order);
+  if (env.texelCount() == 0) throw InputError(env.source, "empty environment");
+  const int order = options.order, nc = order * order;
+  const int vw = vectorWidth(rt, order);
+  const std::string buildOptions = "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vw);
+  const bool cube = env.layout == EnvLayout::Cube;
+  cl::Kernel kernel = rt.kernel("env_project.cl", cube ? "project_cube" : "project_latlong", buildOptions);
+
+  EnvProjectResult result;
+  result.texels = (long long)env.texelCount();
+  const auto t0 = std::chrono::steady_clock::now();
+  const cl_mem_flags hostFlags =
+      rt.info().type == "cpu" ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;  // zero copy on CPU devices
+  cl::Buffer rgb(rt.context(), CL_MEM_READ_ONLY | hostFlags, env.rgb.size() * sizeof(float),
+                 const_cast<float*>(env.rgb.data()));
+  const size_t rows = cube ? 6 * size_t(env.width) : size_t(env.height);
+  cl::Buffer partials(rt.context(), CL_MEM_WRITE_ONLY, rows * 3 * size_t(nc) * sizeof(float));
+  const double yaw = env.yawDegrees * kPi / 180.0;
+  std::vector<float> table1, table2;
+  cl::Buffer buf1, buf2;
+  if (cube) {
+    const int n = env.width;
+    // Solid angles of the upper half of the rows; Ω is symmetric about the face centre.
+    const int halfRows = (n + 1) / 2;
+    table1.resize(size_t(halfRows) * n);
+    for (int r = 0; r < halfRows; ++r)
+      for (int c = 0; c < n; ++c) table1[size_t(r) * n + c] = float(cubeTexelSolidAngle(n, r, c));
+    // Face bases rotated by yaw about +Y.
+    const double cy = std::cos(yaw), sy = std::sin(yaw);
+    for (const auto& f : env.faces)
+      for (const auto* a : {&f.axisU, &f.axisV, &f.axisN}) {
+        const auto& v = *a;
+        table2.insert(table2.end(), {float(cy * v[0] + sy * v[2]), float(v[1]), float(-sy * v[0] + cy * v[2])});
+      }
+    buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
+    buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
+    kernel.setArg(0, rgb);
+    kernel.setArg(1, buf1);
+    kernel.setArg(2, buf2);
+    kernel.setArg(3, n);
+    kernel.setArg(4, partials);
+  } else {
+    const int w = env.width, h = env.height;
+    table1.resize(2 * size_t(w));
+    for (int c = 0; c < w; ++c) {
+      const double lambda = -2.0 * kPi * ((c + 0.5) / w - 0.5) + yaw;
+      table1[size_t(c)] = float(std::sin(lambda));
+      table1[size_t(w + c)] = float(std::cos(lambda));
+    }
+    table2.resize(3 * size_t(h));
+    for (int r = 0; r < h; ++r) {
+      const double phi = kPi * (0.5 - (r + 0.5) / h);
+      const double top = kPi * (0.5 - double(r) / h), bottom = kPi * (0.5 - double(r + 1) / h);
+      table2[3 * size_t(r)] = float(std::sin(phi));
+      table2[3 * size_t(r) + 1] = float(std::cos(phi));
+      table2[3 * size_t(r) + 2] = float((2.0 * kPi / w) * (std::sin(top) - std::sin(bottom)));
+    }
+    buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
+    buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
+    kernel.setArg(0, rgb);
+    kernel.setArg(1, buf1);
+    kernel.setArg(2, buf2);
+    kernel.setArg(3, w);
+    kernel.setArg(4, h);
+    kernel.setArg(5, partials);
+  }
+  result.uploadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  // One row per work-item; on CPUs a local size of 1 lets PoCL hand rows to its
+  // threads one by one (even split whatever the row count).
+  const size_t local = rt.info().type == "cpu" ? 1 : 64;
+  const size_t global = (rows + local - 1) / local * local;
+  cl::Event done;
+  rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local), nullptr, &done);
+  std::vector<float> sums(rows * 3 * size_t(nc));
+  rt.queue().enqueueReadBuffer(partials, CL_TRUE, 0, sums.size() * sizeof(float), sums.data());
+  result.kernelSeconds = eventSeconds(done);
+
+  ShCoeffs radiance;
+  radiance.order = order;
+  radiance.rgb.assign(size_t(nc), Rgb{0, 0, 0});
+  for (size_t r = 0; r < rows; ++r) {
+    const float* s = sums.data() + r * 3 * size_t(nc);
+    for (int ch = 0; ch < 3; ++ch)
+      for (int k = 0; k < nc; ++k) radiance.rgb[size_t(k)][size_t(ch)] += double(s[ch * nc + k]);
+  }
+  for (const auto& c : radiance.rgb)
+    for (double v : c)
+      if (!std::isfinite(v)) throw InputError(env.source, "projection overflowed (radiance too large for float)");
+  result.radiance = radiance;
+  if (options.window == ShWindow::Auto) {
+    result.windowWeights =
+        deringingWindow(radiance, &result.autoWindowLambda, &result.minIrradianceBefore, &result.minIrradianceAfter);
+  } else {
+    result.windowWeights = windowWeights(options.window, order);
+  }
+  result.coeffs = applyWindowAndQuantity(radiance, result.windowWeights, options.quantity);
+  return result;
+}
+
+ShCoeffs projectEnvironmentReference(const EnvMap& env, int order) {
+  checkOrder(order);
+  const int nc = order * order;
+  ShCoeffs out;
+  out.order = order;
+  out.rgb.assign(size_t(nc), Rgb{0, 0, 0});
+  std::vector<double> y(static_cast<size_t>(nc));
+  const size_t count = env.texelCount();
+  for (size_t t = 0; t < count; ++t) {
+    double d[3], omega;
+    texelDirection(env, t, d, &omega);
+    shEval(order, d[0], d[1], d[2], y.data());
+    const float* rgb = env.rgb.data() + 3 * t;
+    for (int k = 0; k < nc; ++k)
+      for (int ch = 0; ch < 3; ++ch) out.rgb[size_t(k)][size_t(ch)] += double(rgb[ch]) * y[size_t(k)] * omega;
+  }
+  return out;
+}
+
+}  // namespace prtbake

@@ -1,0 +1,180 @@
+// env_project.cl: projection of an environment onto real SH.
+//
+//   L_i = ∫ L(ω) Y_i(ω) dω  ≈  Σ_t L(ω_t) Y_i(ω_t) Ω_t
+//
+// with ω_t the texel-centre direction and Ω_t the texel's exact solid angle
+// (computed on the host in double, see envmap.h). Each work-item sums one image
+// row into 3·n² partial sums (float); the host adds the rows in double, in row
+// order, so the result is deterministic. The row loop is written with explicit
+// vectors of VW texels (float16, float8 or float) because PoCL runs loop kernels
+// scalar otherwise (PERF.md); the SH basis is evaluated on the vector.
+//
+// Build options: -DSH_ORDER=n (1..32) -DVW=1|8|16.
+#ifndef VW
+#define VW 16
+#endif
+#ifndef SH_ORDER
+#define SH_ORDER 3
+#endif
+#define NC (SH_ORDER * SH_ORDER)
+
+#if VW == 16
+#define SH_T float16
+#define VLOAD(p) vload16(0, (p))
+#define LANES ((float16)(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f, 8.f, 9.f, 10.f, 11.f, 12.f, 13.f, 14.f, 15.f))
+#define HSUM(v) hsum16(v)
+inline float hsum16(float16 v) {
+  float8 a = v.lo + v.hi;
+  float4 b = a.lo + a.hi;
+  float2 c = b.lo + b.hi;
+  return c.x + c.y;
+}
+// Deinterleaves 16 RGB texels (48 floats) into three vectors.
+#define LOAD_RGB(p, r, g, b)                                                                  \
+  {                                                                                           \
+    float16 A = vload16(0, (p)), B = vload16(1, (p)), C = vload16(2, (p));                    \
+    r = (float16)(A.s0, A.s3, A.s6, A.s9, A.sc, A.sf, B.s2, B.s5, B.s8, B.sb, B.se, C.s1, C.s4, \
+                  C.s7, C.sa, C.sd);                                                          \
+    g = (float16)(A.s1, A.s4, A.s7, A.sa, A.sd, B.s0, B.s3, B.s6, B.s9, B.sc, B.sf, C.s2, C.s5, \
+                  C.s8, C.sb, C.se);                                                          \
+    b = (float16)(A.s2, A.s5, A.s8, A.sb, A.se, B.s1, B.s4, B.s7, B.sa, B.sd, C.s0, C.s3, C.s6, \
+                  C.s9, C.sc, C.sf);                                                          \
+  }
+#elif VW == 8
+#define SH_T float8
+#define VLOAD(p) vload8(0, (p))
+#define LANES ((float8)(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f))
+#define HSUM(v) hsum8(v)
+inline float hsum8(float8 v) {
+  float4 b = v.lo + v.hi;
+  float2 c = b.lo + b.hi;
+  return c.x + c.y;
+}
+#define LOAD_RGB(p, r, g, b)                                                         \
+  {                                                                                  \
+    float8 A = vload8(0, (p)), B = vload8(1, (p)), C = vload8(2, (p));               \
+    r = (float8)(A.s0, A.s3, A.s6, B.s1, B.s4, B.s7, C.s2, C.s5);                    \
+    g = (float8)(A.s1, A.s4, A.s7, B.s2, B.s5, C.s0, C.s3, C.s6);                    \
+    b = (float8)(A.s2, A.s5, B.s0, B.s3, B.s6, C.s1, C.s4, C.s7);                    \
+  }
+#else
+#define SH_T float
+#define VLOAD(p) (*(p))
+#define LANES 0.f
+#define HSUM(v) (v)
+#define LOAD_RGB(p, r, g, b) \
+  {                          \
+    r = (p)[0];              \
+    g = (p)[1];              \
+    b = (p)[2];              \
+  }
+#endif
+
+#include "sh.clh"
+
+// Adds one vector of texels (directions x, y, z; weight w = solid angle, 0 for
+// padding lanes; radiance r, g, b) to the accumulators.
+inline void accumulate(SH_T x, SH_T y, SH_T z, SH_T w, SH_T r, SH_T g, SH_T b, SH_T* acc) {
+  SH_T basis[NC];
+  sh_eval(SH_ORDER, x, y, z, basis);
+  r *= w;
+  g *= w;
+  b *= w;
+  for (int k = 0; k < NC; ++k) {
+    acc[k] = fma(basis[k], r, acc[k]);
+    acc[NC + k] = fma(basis[k], g, acc[NC + k]);
+    acc[2 * NC + k] = fma(basis[k], b, acc[2 * NC + k]);
+  }
+}
+
+inline void store_row(SH_T* acc, __global float* out) {
+  for (int k = 0; k < 3 * NC; ++k) out[k] = HSUM(acc[k]);
+}
+
+// Loads lanes c0..c0+VW-1 of an RGB row and weight row that may end before the
+// vector does (columns ≥ n get weight 0 and radiance 0).
+inline void load_tail(__global const float* rgbRow, __global const float* wRow, int c0, int n, SH_T* r,
+                      SH_T* g, SH_T* b, SH_T* w) {
+  float tr[VW], tg[VW], tb[VW], tw[VW];
+  for (int l = 0; l < VW; ++l) {
+    int c = c0 + l;
+    bool in = c < n;
+    tr[l] = in ? rgbRow[3 * c] : 0.f;
+    tg[l] = in ? rgbRow[3 * c + 1] : 0.f;
+    tb[l] = in ? rgbRow[3 * c + 2] : 0.f;
+    tw[l] = in ? wRow[c] : 0.f;
+  }
+#if VW == 1
+  *r = tr[0], *g = tg[0], *b = tb[0], *w = tw[0];
+#else
+  *r = VLOAD(tr), *g = VLOAD(tg), *b = VLOAD(tb), *w = VLOAD(tw);
+#endif
+}
+
+// One work-item per face row.
+// rgb:      6 faces × n rows × n columns × RGB, interleaved float
+// weights:  exact texel solid angles of rows 0..(n+1)/2-1 (rows mirror: Ω(r) = Ω(n-1-r)), n per row
+// bases:    6 × (axisU, axisV, axisN), 9 floats per face, yaw applied
+// n:        face size
+// partials: 6n rows × 3·NC sums (R block, G block, B block)
+__kernel void project_cube(__global const float* rgb, __global const float* weights,
+                           __constant float* bases, int n, __global float* partials) {
+  int rowId = get_global_id(0);
+  if (rowId >= 6 * n) return;
+  int face = rowId / n, row = rowId - face * n;
+  __constant float* B = bases + 9 * face;
+  float v = 2.0f * (row + 0.5f) / n - 1.0f;
+  float ox = v * B[3] + B[6], oy = v * B[4] + B[7], oz = v * B[5] + B[8];
+  __global const float* wRow = weights + (size_t)min(row, n - 1 - row) * n;
+  __global const float* rgbRow = rgb + (size_t)rowId * n * 3;
+  SH_T acc[3 * NC];
+  for (int k = 0; k < 3 * NC; ++k) acc[k] = (SH_T)(0.0f);
+  float invN2 = 2.0f / n;
+  for (int c0 = 0; c0 < n; c0 += VW) {
+    SH_T r, g, b, w;
+    if (c0 + VW <= n) {
+      LOAD_RGB(rgbRow + 3 * c0, r, g, b);
+      w = VLOAD(wRow + c0);
+    } else {
+      load_tail(rgbRow, wRow, c0, n, &r, &g, &b, &w);
+    }
+    SH_T u = ((SH_T)(c0 + 0.5f) + LANES) * invN2 - 1.0f;
+    SH_T x = u * B[0] + ox, y = u * B[1] + oy, z = u * B[2] + oz;
+    SH_T inv = rsqrt(x * x + y * y + z * z);
+    accumulate(x * inv, y * inv, z * inv, w, r, g, b, acc);
+  }
+  store_row(acc, partials + (size_t)rowId * 3 * NC);
+}
+
+// One work-item per lat-long row.
+// rgb:       h rows × w columns × RGB
+// colSinCos: per column sin(λ + yaw), cos(λ + yaw)  (2w floats: all sines, then all cosines)
+// rowTrig:   per row sin φ, cos φ, solid angle of one texel of the row (3h floats)
+__kernel void project_latlong(__global const float* rgb, __global const float* colSinCos,
+                              __global const float* rowTrig, int w, int h, __global float* partials) {
+  int row = get_global_id(0);
+  if (row >= h) return;
+  float sinPhi = rowTrig[3 * row], cosPhi = rowTrig[3 * row + 1], omega = rowTrig[3 * row + 2];
+  __global const float* rgbRow = rgb + (size_t)row * w * 3;
+  __global const float* sinL = colSinCos;
+  __global const float* cosL = colSinCos + w;
+  SH_T acc[3 * NC];
+  for (int k = 0; k < 3 * NC; ++k) acc[k] = (SH_T)(0.0f);
+  for (int c0 = 0; c0 < w; c0 += VW) {
+    SH_T r, g, b, s, c;
+    if (c0 + VW <= w) {
+      LOAD_RGB(rgbRow + 3 * c0, r, g, b);
+      s = VLOAD(sinL + c0);
+      c = VLOAD(cosL + c0);
+    } else {
+      SH_T unusedW;
+      load_tail(rgbRow, sinL, c0, w, &r, &g, &b, &s);
+      load_tail(rgbRow, cosL, c0, w, &r, &g, &b, &c);
+      unusedW = s;
+      (void)unusedW;
+    }
+    // Padding lanes have r = g = b = 0, so their direction does not matter.
+    accumulate(s * cosPhi, (SH_T)(sinPhi), c * cosPhi, (SH_T)(omega), r, g, b, acc);
+  }
+  store_row(acc, partials + (size_t)row * 3 * NC);
+}
