@@ -1,0 +1,289 @@
+// loadEnvironment: from files on disk to an EnvMap in DESIGN.md's conventions.
+//
+// Layouts (the face orientations are DESIGN.md's "Cube faces" unless said otherwise):
+//   directory   six faces posx/negx/posy/negy/posz/negz.{exr,hdr,png,jpg}
+//   games202    the same directory, read the way the GAMES202 homework-2 framework
+//               reads it (its face order, its direction table, (c/255)^2.2)
+//   OpenEXR with the envmap attribute: lat-long as is; cube (N×6N) re-indexed
+//               texel by texel through ImfEnvmap.h's CubeMap functions
+//   2:1         lat-long (EnvMap's convention = OpenEXR LatLongMap axes)
+//   4:3         horizontal cross:      [+Y]             3:4 vertical cross:   [+Y]
+//                                 [−X] [+Z] [+X] [−Z]                    [−X] [+Z] [+X]
+//                                      [−Y]                                   [−Y]
+//                                                                             [−Z] (rotated 180°)
+//   1:6, 6:1    strips of the six faces in the order +X, −X, +Y, −Y, +Z, −Z
+#include <ImfEnvmap.h>
+#include <sys/stat.h>
+
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+
+#include "image_read.h"
+#include "prtbake/envmap.h"
+#include "prtbake/error.h"
+
+namespace prtbake {
+namespace {
+
+using detail::Image;
+using detail::LdrDecode;
+
+// DESIGN.md's face order and the file names that hold them.
+const std::array<const char*, 6> kFaceNames = {"posx", "negx", "posy", "negy", "posz", "negz"};
+const std::array<const char*, 4> kFaceExtensions = {".exr", ".hdr", ".png", ".jpg"};
+
+std::string sizeText(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+
+// Copies the n×n block of `img` whose top-left pixel is (x0, y0) into cube face
+// `face` of env (row 0 at the top). rotate180 turns the block upside down
+// (row r, column c of the face comes from block row n−1−r, column n−1−c).
+void copyFace(const Image& img, int x0, int y0, int n, bool rotate180, EnvMap& env, int face) {
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      const int sr = rotate180 ? n - 1 - r : r, sc = rotate180 ? n - 1 - c : c;
+      const size_t src = 3 * (size_t(y0 + sr) * size_t(img.width) + size_t(x0 + sc));
+      const size_t dst = 3 * ((size_t(face) * size_t(n) + size_t(r)) * size_t(n) + size_t(c));
+      for (int k = 0; k < 3; ++k) env.rgb[dst + k] = img.rgb[src + k];
+    }
+}
+
+EnvMap emptyCube(int n, const std::string& path, const std::string& layoutName) {
+  EnvMap env;
+  env.layout = EnvLayout::Cube;
+  env.width = env.height = n;
+  env.rgb.assign(6 * size_t(n) * size_t(n) * 3, 0.0f);
+  env.source = path;
+  env.inputFiles = {path};
+  env.layoutName = layoutName;
+  return env;
+}
+
+EnvMap fromLatLong(Image&& img, const std::string& path) {
+  if (img.width != 2 * img.height)
+    throw InputError(path, "a lat-long map must be twice as wide as high (got " + sizeText(img.width, img.height) + ")");
+  EnvMap env;
+  env.layout = EnvLayout::LatLong;
+  env.width = img.width, env.height = img.height;
+  env.rgb = std::move(img.rgb);
+  env.source = path;
+  env.inputFiles = {path};
+  env.layoutName = "latlong";
+  return env;
+}
+
+// Cell (column, row) of each face, in face-size units, and whether it is rotated 180°.
+struct CrossCell {
+  int col, row;
+  bool rotate180;
+};
+
+EnvMap fromCross(const Image& img, const std::string& path) {
+  const bool horizontal = 3 * img.width == 4 * img.height;
+  const bool vertical = 4 * img.width == 3 * img.height;
+  if (!horizontal && !vertical)
+    throw InputError(path, "a cross must be 4:3 (horizontal) or 3:4 (vertical), got " + sizeText(img.width, img.height));
+  const int n = horizontal ? img.width / 4 : img.width / 3;
+  // +X, −X, +Y, −Y, +Z, −Z. In both crosses +Z is the centre of the middle row with
+  // −X to its left, +X to its right, +Y above and −Y below, all unrotated, so each
+  // shared edge carries the same directions on both sides (tests/test_env_load.cpp
+  // checks every seam). −Z sits right of +X (horizontal: +X's right edge u = 1 is
+  // (1, −v, −1), −Z's left edge u = −1 is (1, −v, −1)), or below −Y turned 180°
+  // (vertical: −Y's bottom edge v = 1 is (u, −1, −1); −Z's bottom row v = 1, seen
+  // upside down, has u' = −u: (−u', −1, −1) = (u, −1, −1)).
+  const std::array<CrossCell, 6> cells =
+      horizontal ? std::array<CrossCell, 6>{{{2, 1, false}, {0, 1, false}, {1, 0, false},
+                                             {1, 2, false}, {1, 1, false}, {3, 1, false}}}
+                 : std::array<CrossCell, 6>{{{2, 1, false}, {0, 1, false}, {1, 0, false},
+                                             {1, 2, false}, {1, 1, false}, {1, 3, true}}};
+  EnvMap env = emptyCube(n, path, horizontal ? "cross" : "vertical-cross");
+  for (int f = 0; f < 6; ++f) copyFace(img, cells[f].col * n, cells[f].row * n, n, cells[f].rotate180, env, f);
+  return env;
+}
+
+EnvMap fromStrip(const Image& img, const std::string& path) {
+  const bool vertical = img.height == 6 * img.width;
+  const int n = vertical ? img.width : img.height;
+  EnvMap env = emptyCube(n, path, "strip");
+  for (int f = 0; f < 6; ++f) copyFace(img, vertical ? 0 : f * n, vertical ? f * n : 0, n, false, env, f);
+  return env;
+}
+
+// OpenEXR cube (ENVMAP_CUBE): six N×N faces stacked vertically in a N×6N data
+// window, each with the orientation ImfEnvmap.h defines. We do not restate that
+// table; we ask the library. For our texel (f, row, col) we hand
+// Imf::CubeMap::faceAndPixelPosition the unnormalised direction
+// u·axisU + v·axisV + axisN (its components are 0, ±1, ±u, ±v, exact in float
+// for power-of-two N), and Imf::CubeMap::pixelPosition turns the face position
+// into a pixel of the data window.
+//
+// OpenEXR samples a face at pixel positions 0 … N−1 mapped to [−1, 1] (pixel
+// centres on the face edges), we at centres u = 2(c + 0.5)/N − 1. Our texel c so
+// lands at c + 0.5 − (c + 0.5)/N (or its mirror N − 1 − that), strictly within
+// 0.5 of an integer: rounding recovers the pixel exactly. The two conventions
+// differ by less than half a texel in angle; the data is the same grid.
+// Self-test: the map must use every pixel of the file exactly once.
+EnvMap fromOpenExrCube(const Image& img, const std::string& path) {
+  if (img.height != 6 * img.width)
+    throw InputError(path, "an OpenEXR cube map must be N wide and 6N high (got " + sizeText(img.width, img.height) + ")");
+  const int n = img.width;
+  EnvMap env = emptyCube(n, path, "openexr-cube");
+  const Imath::Box2i dw(Imath::V2i(img.dataMinX, img.dataMinY),
+                        Imath::V2i(img.dataMinX + img.width - 1, img.dataMinY + img.height - 1));
+  std::vector<unsigned char> used(size_t(img.width) * size_t(img.height), 0);
+  for (int f = 0; f < 6; ++f) {
+    const CubeFaceBasis& b = env.faces[size_t(f)];
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        const float u = float(2.0 * (c + 0.5) / n - 1.0), v = float(2.0 * (r + 0.5) / n - 1.0);
+        const Imath::V3f d(float(u * b.axisU[0] + v * b.axisV[0] + b.axisN[0]),
+                           float(u * b.axisU[1] + v * b.axisV[1] + b.axisN[1]),
+                           float(u * b.axisU[2] + v * b.axisV[2] + b.axisN[2]));
+        Imf::CubeMapFace exrFace;
+        Imath::V2f pif;
+        Imf::CubeMap::faceAndPixelPosition(d, dw, exrFace, pif);
+        const Imath::V2f pos = Imf::CubeMap::pixelPosition(exrFace, dw, pif);
+        const int x = int(std::floor(pos.x + 0.5f)) - dw.min.x, y = int(std::floor(pos.y + 0.5f)) - dw.min.y;
+        PRTBAKE_CHECK(x >= 0 && x < img.width && y >= 0 && y < img.height, "OpenEXR cube pixel outside the image");
+        const size_t src = size_t(y) * size_t(img.width) + size_t(x);
+        PRTBAKE_CHECK(used[src] == 0, "two cube texels map to one OpenEXR pixel");
+        used[src] = 1;
+        const size_t dst = 3 * ((size_t(f) * size_t(n) + size_t(r)) * size_t(n) + size_t(c));
+        for (int k = 0; k < 3; ++k) env.rgb[dst + k] = img.rgb[3 * src + k];
+      }
+  }
+  // 6N² distinct pixels of a 6N² image were hit: each exactly once.
+  return env;
+}
+
+// One single image, layout from the envmap attribute, the forced layout, or the shape.
+EnvMap fromImage(Image&& img, const std::string& path, const std::string& layout) {
+  const int w = img.width, h = img.height;
+  if (img.envmap == 1) {
+    if (layout != "auto")
+      throw InputError(path, "the OpenEXR envmap attribute says cube; layout '" + layout + "' does not apply");
+    return fromOpenExrCube(img, path);
+  }
+  if (img.envmap == 0) {
+    if (layout != "auto" && layout != "latlong")
+      throw InputError(path, "the OpenEXR envmap attribute says lat-long; layout '" + layout + "' does not apply");
+    return fromLatLong(std::move(img), path);
+  }
+  if (layout == "latlong") return fromLatLong(std::move(img), path);
+  if (layout == "cross") return fromCross(img, path);
+  // auto
+  if (w == 2 * h) return fromLatLong(std::move(img), path);
+  if (3 * w == 4 * h || 4 * w == 3 * h) return fromCross(img, path);
+  if (h == 6 * w || w == 6 * h) return fromStrip(img, path);
+  throw InputError(path, "cannot tell the layout of a " + sizeText(w, h) +
+                             " image; expected 2:1 lat-long, 4:3 or 3:4 cross, 6:1 or 1:6 strip");
+}
+
+// The six face files of `dir`, in the order of `names`; names each missing face.
+std::vector<std::string> findFaceFiles(const std::string& dir, const std::array<const char*, 6>& names,
+                                       const std::vector<const char*>& extensions) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> files, missing;
+  for (const char* name : names) {
+    std::vector<std::string> found;
+    for (const char* ext : extensions) {
+      const fs::path p = fs::path(dir) / (std::string(name) + ext);
+      std::error_code ec;
+      if (fs::is_regular_file(p, ec)) found.push_back(p.string());
+    }
+    if (found.size() > 1)
+      throw InputError(dir, "face " + std::string(name) + " is ambiguous: " + found[0] + " and " + found[1]);
+    if (found.empty()) missing.push_back(name);
+    else files.push_back(found[0]);
+  }
+  if (!missing.empty()) {
+    std::string list, exts;
+    for (const auto& m : missing) list += (list.empty() ? "" : ", ") + m;
+    for (const char* e : extensions) exts += std::string(exts.empty() ? "" : " ") + e;
+    throw InputError(dir, "missing cube face" + std::string(missing.size() > 1 ? "s " : " ") + list +
+                              " (expected posx, negx, posy, negy, posz, negz with one of " + exts + ")");
+  }
+  return files;
+}
+
+// Reads six face files into the cube faces 0..5 in the order given.
+EnvMap fromFaceFiles(const std::string& dir, const std::vector<std::string>& files, LdrDecode decode,
+                     const std::string& layoutName) {
+  EnvMap env;
+  env.layout = EnvLayout::Cube;
+  env.source = dir;
+  env.inputFiles = files;
+  env.layoutName = layoutName;
+  int n = 0;
+  for (size_t f = 0; f < 6; ++f) {
+    Image img = detail::readImage(files[f], decode);
+    if (img.width != img.height)
+      throw InputError(files[f], "a cube face must be square (got " + sizeText(img.width, img.height) + ")");
+    if (f == 0) {
+      n = img.width;
+      env.width = env.height = n;
+      env.rgb.assign(6 * size_t(n) * size_t(n) * 3, 0.0f);
+    } else if (img.width != n) {
+      throw InputError(files[f], "face is " + sizeText(img.width, img.height) + " but " + files[0] + " is " +
+                                     sizeText(n, n) + "; all six faces must have the same size");
+    }
+    copyFace(img, 0, 0, n, false, env, int(f));
+  }
+  return env;
+}
+
+// The GAMES202 homework-2 framework (github magicianA/GAMES202,
+// homework2/prt/src/prt.cpp, namespace ProjEnv) loads the faces in the order
+// negx, posx, posy, negy, posz, negz with stbi_loadf (8-bit → (c/255)^2.2, rows
+// top first), and gives the pixel at column x, row y of face i the direction
+// normalize(X·u + Y·v + Z), u = 2(x + 0.5)/width − 1, v = 2(y + 0.5)/height − 1,
+// with (X, Y, Z) from its table cubemapFaceDirections[i] (below, the same rows).
+// Its table's comments call rows 2 and 3 "negy" and "posy" while its load order
+// puts posy.jpg at 2 and negy.jpg at 3; like the framework, we pair the file of
+// load index i with row i, so posy.jpg's texels get −Y-facing directions. That is
+// what its light.txt encodes, and what the preset must reproduce.
+const std::array<const char*, 6> kGames202LoadOrder = {"negx", "posx", "posy", "negy", "posz", "negz"};
+const std::array<CubeFaceBasis, 6> kGames202Bases = {{
+    {{0, 0, 1}, {0, -1, 0}, {-1, 0, 0}},
+    {{0, 0, 1}, {0, -1, 0}, {1, 0, 0}},
+    {{1, 0, 0}, {0, 0, -1}, {0, -1, 0}},
+    {{1, 0, 0}, {0, 0, 1}, {0, 1, 0}},
+    {{-1, 0, 0}, {0, -1, 0}, {0, 0, -1}},
+    {{1, 0, 0}, {0, -1, 0}, {0, 0, 1}},
+}};
+
+EnvMap loadDirectory(const std::string& dir, const std::string& layout) {
+  const std::vector<const char*> allExts(kFaceExtensions.begin(), kFaceExtensions.end());
+  if (layout == "games202") {
+    EnvMap env = fromFaceFiles(dir, findFaceFiles(dir, kGames202LoadOrder, allExts), LdrDecode::Gamma22, "games202");
+    env.faces = kGames202Bases;
+    return env;
+  }
+  if (layout != "auto" && layout != "faces")
+    throw InputError(dir, "is a directory; layout '" + layout + "' needs a single image");
+  return fromFaceFiles(dir, findFaceFiles(dir, kFaceNames, allExts), LdrDecode::Srgb, "faces");
+}
+
+}  // namespace
+
+EnvMap loadEnvironment(const std::string& path, const EnvLoadOptions& options) {
+  const std::string& layout = options.layout;
+  if (layout != "auto" && layout != "faces" && layout != "cross" && layout != "latlong" && layout != "games202")
+    throw UsageError("layout", "unknown layout '" + layout + "' (expected auto, faces, cross, latlong or games202)");
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  EnvMap env;
+  if (S_ISDIR(st.st_mode)) {
+    env = loadDirectory(path, layout);
+  } else {
+    if (layout == "faces" || layout == "games202")
+      throw InputError(path, "layout '" + layout + "' needs a directory of six face images");
+    env = fromImage(detail::readImage(path, LdrDecode::Srgb), path, layout);
+  }
+  validateEnvironment(env, options.clampInvalid);
+  return env;
+}
+
+}  // namespace prtbake

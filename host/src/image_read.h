@@ -1,0 +1,40 @@
+// image_read.h (internal): one image file → linear float RGB in memory.
+//
+// Formats are recognised by their content, not their extension:
+//   OpenEXR (magic 76 2f 31 01): via the OpenEXR library, scanline or tiled, half,
+//     float or uint channels; tiled mip-/rip-mapped files are read at level 0; the
+//     data window is respected (the image is the data window, its origin kept in
+//     dataMinX/Y). R, G, B channels (missing ones read as 0), or a Y-only grey
+//     image, or luminance/chroma (Y, RY, BY) through RgbaInputFile.
+//   Radiance .hdr: stb_image's stbi_loadf (linear as stored).
+//   PNG, JPEG (and the other 8/16-bit formats stb_image knows): decoded to
+//     integers and linearised with `ldrDecode`; grey is expanded to RGB and alpha
+//     is dropped.
+// Every failure is an InputError naming the file and the library's reason.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace prtbake::detail {
+
+// How 8/16-bit code values c ∈ [0, 1] become linear radiance.
+enum class LdrDecode {
+  Srgb,     // the exact sRGB EOTF (IEC 61966-2-1): c/12.92, or ((c + 0.055)/1.055)^2.4
+  Gamma22,  // c^2.2, what stb_image's stbi_loadf (and so the GAMES202 framework) does
+};
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<float> rgb;      // width·height interleaved RGB, row 0 (top) first
+  int envmap = -1;             // OpenEXR envmap attribute: -1 none, 0 lat-long, 1 cube
+  int dataMinX = 0, dataMinY = 0;  // OpenEXR data window origin (0, 0 for other formats)
+  std::string format;          // "OpenEXR", "Radiance HDR", "PNG/JPEG (8-bit)", ...
+};
+
+Image readImage(const std::string& path, LdrDecode ldrDecode = LdrDecode::Srgb);
+
+// The exact sRGB EOTF of one code value in [0, 1].
+double srgbToLinear(double c);
+
+}  // namespace prtbake::detail
