@@ -74,6 +74,8 @@ inline float hsum8(float8 v) {
 
 // Adds one vector of texels (directions x, y, z; weight w = solid angle, 0 for
 // padding lanes; radiance r, g, b) to the accumulators.
+// Plain multiply-add, not fma(): PoCL lowers the vector fma() builtin to a slow
+// correctly-rounded routine here (measured 2x slower for the whole kernel).
 inline void accumulate(SH_T x, SH_T y, SH_T z, SH_T w, SH_T r, SH_T g, SH_T b, SH_T* acc) {
   SH_T basis[NC];
   sh_eval(SH_ORDER, x, y, z, basis);
@@ -81,9 +83,9 @@ inline void accumulate(SH_T x, SH_T y, SH_T z, SH_T w, SH_T r, SH_T g, SH_T b, S
   g *= w;
   b *= w;
   for (int k = 0; k < NC; ++k) {
-    acc[k] = fma(basis[k], r, acc[k]);
-    acc[NC + k] = fma(basis[k], g, acc[NC + k]);
-    acc[2 * NC + k] = fma(basis[k], b, acc[2 * NC + k]);
+    acc[k] += basis[k] * r;
+    acc[NC + k] += basis[k] * g;
+    acc[2 * NC + k] += basis[k] * b;
   }
 }
 

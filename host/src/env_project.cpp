@@ -1,5 +1,6 @@
 // Environment → SH: the OpenCL projection and its double-precision reference.
 #include <chrono>
+#include <cstdlib>
 #include <cmath>
 
 #include "prtbake/env_sh.h"
@@ -103,9 +104,9 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   }
   result.uploadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  // One row per work-item; on CPUs a local size of 1 lets PoCL hand rows to its
-  // threads one by one (even split whatever the row count).
-  const size_t local = rt.info().type == "cpu" ? 1 : 64;
+  // One row per work-item; on CPUs small work-groups (4 rows) keep the split over
+  // PoCL's threads even while amortising the per-group launch cost.
+  const size_t local = rt.info().type == "cpu" ? 4 : 64;
   const size_t global = (rows + local - 1) / local * local;
   cl::Event done;
   rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local), nullptr, &done);
