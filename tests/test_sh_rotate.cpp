@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <fstream>
 
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
@@ -113,4 +114,42 @@ TEST_CASE("Rotating coefficients equals projecting the rotated environment", "[r
     INFO("coefficient " << i);
     REQUIRE(std::abs(rotated.rgb[i][0] - turned.rgb[i][0]) < kDiscretisationTol * base.rgb[0][0]);
   }
+}
+
+TEST_CASE("CLI rotate: exact and projection give the same file values; bad input", "[rotate][cli]") {
+  const std::string dir = test::tempDir("rotatecli");
+  ShCoeffs c;
+  c.order = 4;
+  for (int i = 0; i < 16; ++i) c.rgb.push_back({0.1 * i, -0.05 * i, 1.0 / (1 + i)});
+  writeShJson(dir + "/in.json", c, "{}");
+  auto r = test::runCli("rotate '" + dir + "/in.json' -o '" + dir + "/a.json' --euler-zyz 10,20,30 --quiet");
+  REQUIRE(r.exitCode == 0);
+  r = test::runCli("rotate '" + dir + "/in.json' -o '" + dir + "/b.json' --euler-zyz 10,20,30 --method projection --quiet");
+  REQUIRE(r.exitCode == 0);
+  const ShCoeffs a = readShJson(dir + "/a.json"), b = readShJson(dir + "/b.json");
+  const ShCoeffs expect = applyShRotation(c, shRotationExact(rotationFromEulerZYZ(10, 20, 30), 4));
+  for (size_t i = 0; i < 16; ++i)
+    for (int ch = 0; ch < 3; ++ch) {
+      REQUIRE(a.rgb[i][size_t(ch)] == Approx(expect.rgb[i][size_t(ch)]).margin(1e-12));
+      REQUIRE(b.rgb[i][size_t(ch)] == Approx(expect.rgb[i][size_t(ch)]).margin(1e-9));
+    }
+  // A quaternion for the same rotation about +Z by 90° as Euler (90, 0, 0).
+  r = test::runCli("rotate '" + dir + "/in.json' -o '" + dir + "/q.json' --quat 0.70710678118654752,0,0,0.70710678118654752 --quiet");
+  REQUIRE(r.exitCode == 0);
+  const ShCoeffs q = readShJson(dir + "/q.json");
+  const ShCoeffs e = applyShRotation(c, shRotationExact(rotationFromEulerZYZ(90, 0, 0), 4));
+  for (size_t i = 0; i < 16; ++i) REQUIRE(q.rgb[i][0] == Approx(e.rgb[i][0]).margin(1e-12));
+  // Bad input: no rotation, both, malformed angles, a zero quaternion, a missing or non-SH file.
+  for (const std::string& bad : {std::string(""), std::string("--euler-zyz 1,2,3 --quat 1,0,0,0"),
+                                  std::string("--euler-zyz 1,2"), std::string("--quat 0,0,0,0")}) {
+    r = test::runCli("rotate '" + dir + "/in.json' -o '" + dir + "/bad.json' " + bad);
+    INFO(bad << ": " << r.output);
+    REQUIRE(r.exitCode == 2);
+    REQUIRE_FALSE(test::fileExists(dir + "/bad.json"));
+  }
+  std::ofstream(dir + "/junk.json") << "{\"order\": 3}";
+  r = test::runCli("rotate '" + dir + "/junk.json' -o '" + dir + "/bad.json' --euler-zyz 1,2,3");
+  REQUIRE(r.exitCode == 1);
+  REQUIRE(r.output.find("junk.json") != std::string::npos);
+  REQUIRE_FALSE(test::fileExists(dir + "/bad.json"));
 }

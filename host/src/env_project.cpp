@@ -1,5 +1,7 @@
 // Environment → SH: the OpenCL projection and its double-precision reference.
 #include <chrono>
+#include <map>
+#include <mutex>
 #include <cstdlib>
 #include <cmath>
 
@@ -25,6 +27,35 @@ int vectorWidth(const Runtime& rt, int order) {
   if (order <= 4) return 16;
   if (order <= 8) return 8;
   return 1;
+}
+
+// Exact solid angles of the rows 0..(n+1)/2−1 of an n×n face (the lower rows
+// mirror them), as floats for the kernel. The corner function f(u, v) is
+// evaluated once per corner of the upper-left quadrant and texels are the
+// differences f(u0,v0) − f(u0,v1) − f(u1,v0) + f(u1,v1) (envmap.h), so a 2048²
+// face costs 1M atan2 instead of 8M. Tables are kept per size for later calls.
+std::vector<float> cubeSolidAngleTable(int n) {
+  static std::mutex mutex;
+  static std::map<int, std::vector<float>> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (auto it = cache.find(n); it != cache.end()) return it->second;
+  const int half = (n + 1) / 2;  // rows (and columns) 0..half−1 cover a quadrant
+  std::vector<double> corner(size_t(half + 1) * size_t(half + 1));
+  for (int r = 0; r <= half; ++r)
+    for (int c = 0; c <= half; ++c) {
+      const double u = 2.0 * c / n - 1.0, v = 2.0 * r / n - 1.0;
+      corner[size_t(r) * size_t(half + 1) + size_t(c)] = std::atan2(u * v, std::sqrt(u * u + v * v + 1.0));
+    }
+  auto f = [&](int r, int c) { return corner[size_t(r) * size_t(half + 1) + size_t(c)]; };
+  std::vector<float> table(size_t(half) * size_t(n));
+  for (int r = 0; r < half; ++r)
+    for (int c = 0; c < half; ++c) {
+      const float w = float(f(r, c) - f(r + 1, c) - f(r, c + 1) + f(r + 1, c + 1));
+      table[size_t(r) * size_t(n) + size_t(c)] = w;
+      table[size_t(r) * size_t(n) + size_t(n - 1 - c)] = w;  // Ω is symmetric in u
+    }
+  cache.emplace(n, table);
+  return table;
 }
 
 double eventSeconds(const cl::Event& e) {
@@ -58,11 +89,7 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   cl::Buffer buf1, buf2;
   if (cube) {
     const int n = env.width;
-    // Solid angles of the upper half of the rows; Ω is symmetric about the face centre.
-    const int halfRows = (n + 1) / 2;
-    table1.resize(size_t(halfRows) * n);
-    for (int r = 0; r < halfRows; ++r)
-      for (int c = 0; c < n; ++c) table1[size_t(r) * n + c] = float(cubeTexelSolidAngle(n, r, c));
+    table1 = cubeSolidAngleTable(n);
     // Face bases rotated by yaw about +Y.
     const double cy = std::cos(yaw), sy = std::sin(yaw);
     for (const auto& f : env.faces)
