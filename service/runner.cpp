@@ -214,9 +214,10 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   // Temp and staging files of killed runs, in every directory this job writes to.
   std::set<std::string> dirs;
   for (const auto& o : job.outputs) dirs.insert(dirOf(o.path));
-  for (const auto& d : dirs)
-    if (const int n = removeStaleTempFiles(d); n > 0)
-      reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
+  if (!options_.dryRun)
+    for (const auto& d : dirs)
+      if (const int n = removeStaleTempFiles(d); n > 0)
+        reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
 
   if (!options_.force) {
     const std::string why = whyOutOfDate(job);
