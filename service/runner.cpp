@@ -44,19 +44,22 @@ void fsyncDir(const std::string& dir) {
 }
 
 // The outputs of one job while it runs. The product writes each output to a
-// staging name in the output's directory (".<name>.prtbake-tmp.<pid>.stage.<name>":
-// hidden, same extension, and recognised by removeStaleTempFiles after a kill);
+// staging name in the output's directory (".stage.prtbake-tmp.<pid>.<n>.<kind><ext>":
+// hidden, short, with the output's extension for writers that look at it, and
+// recognised by removeStaleTempFiles after a kill);
 // commit() renames them all to their final names, or removes every one of them
 // (and any already renamed) when a rename fails. Uncommitted staging files are
 // removed on destruction, so a failed job leaves nothing behind.
 class StagedOutputs {
  public:
   explicit StagedOutputs(const Job& job) {
+    static int counter = 0;
     for (const auto& o : job.outputs) {
       const fs::path p(o.path);
-      const std::string base = p.filename().string();
-      const std::string staging = (p.parent_path() / ("." + base + ".prtbake-tmp." + std::to_string(::getpid()) +
-                                                      ".stage." + base)).string();
+      const std::string staging =
+          (p.parent_path() / (".stage.prtbake-tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++) +
+                              "." + o.kind + p.extension().string()))
+              .string();
       paths_[o.kind] = staging;
       order_.push_back({staging, o.path});
     }

@@ -211,7 +211,7 @@ TEST_CASE("run: stale temp files of a killed run are removed, live ones kept", "
   ::waitpid(child, nullptr, 0);
   const std::string dead = std::to_string(child), live = std::to_string(::getpid());
   const std::string deadTemp = dir + "/out/.sky.json.prtbake-tmp." + dead + ".0";
-  const std::string deadStage = dir + "/out/.sky.json.prtbake-tmp." + dead + ".stage.sky.json";
+  const std::string deadStage = dir + "/out/.stage.prtbake-tmp." + dead + ".0.json.json";
   const std::string liveTemp = dir + "/out/.other.json.prtbake-tmp." + live + ".0";
   for (const auto& f : {deadTemp, deadStage, liveTemp}) writeText(f, "partial");
   const CliResult r = runCli("run " + q(dir + "/jobs.json"));
