@@ -44,7 +44,7 @@ ExecResult runEnv(const Job& job, ExecContext& ctx) {
   const double projectSeconds = secondsSince(t1);
 
   ExecResult result;
-  result.inputFiles = env.inputFiles.empty() ? std::vector<std::string>{job.input} : env.inputFiles;
+  result.inputFiles = filesRead(job, env.inputFiles);
   result.report = {{"texels", r.texels},
                    {"layout", env.layoutName},
                    {"clamped_texels", env.clampedTexels},

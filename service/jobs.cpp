@@ -262,6 +262,20 @@ const Output* Job::findOutput(const std::string& kind) const {
   return nullptr;
 }
 
+std::vector<std::string> filesRead(const Job& job, const std::vector<std::string>& reported) {
+  std::vector<std::string> files;
+  if (!reported.empty()) {
+    for (const auto& f : reported) files.push_back(fs::absolute(f).lexically_normal().string());
+    return files;
+  }
+  if (job.input.empty()) return files;
+  if (!fs::is_directory(job.input)) return {job.input};
+  for (const auto& e : fs::directory_iterator(job.input))
+    if (e.is_regular_file()) files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
 const JobType* findJobType(const std::string& name) {
   for (const auto& t : jobTypes())
     if (t.name == name) return &t;

@@ -106,6 +106,10 @@ struct JobFile {
 // problem is recorded in the result.
 JobFile loadJobFile(const std::string& path, const std::string& baseDir = "");
 
+// Every file a job read, absolute: the product's list, or else the input itself
+// (every regular file in it when it is a directory).
+std::vector<std::string> filesRead(const Job& job, const std::vector<std::string>& reported);
+
 // Marks jobs (across all files) that write a file another job writes, or whose
 // manifest would collide with another job's file. The first writer keeps it.
 void checkOutputConflicts(std::vector<JobFile>& files);

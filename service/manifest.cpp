@@ -89,7 +89,8 @@ std::string whyOutOfDate(const Job& job) {
   bool primarySeen = job.input.empty();
   for (const auto& in : ins) {
     const std::string path = in.value("path", "");
-    if (path == job.input) primarySeen = true;
+    // The input itself, or a file inside it when it is a directory (six faces).
+    if (path == job.input || path.rfind(job.input + "/", 0) == 0) primarySeen = true;
     if (fileSize(path) < 0) return "input missing: " + path;
     std::string sha;
     try {

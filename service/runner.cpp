@@ -100,19 +100,6 @@ class StagedOutputs {
   std::vector<std::pair<std::string, std::string>> order_;   // staging, final
 };
 
-// Every file the job read: the product's list, or else the input itself (every
-// regular file in it when it is a directory).
-std::vector<std::string> inputFilesOf(const Job& job, const ExecResult& r) {
-  if (!r.inputFiles.empty()) return r.inputFiles;
-  if (job.input.empty()) return {};
-  if (!fs::is_directory(job.input)) return {job.input};
-  std::vector<std::string> files;
-  for (const auto& e : fs::directory_iterator(job.input))
-    if (e.is_regular_file()) files.push_back(e.path().string());
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 // The reason an exception gives, without repeating the job id.
 std::string reasonOf(const Job& job, const std::exception& e) {
   if (auto* pe = dynamic_cast<const Error*>(&e); pe && pe->subject() == job.id) return pe->detail();
@@ -253,7 +240,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
     const ExecResult result = job.type->execute(job, ctx);
     const double runSeconds = secondsSince(tRun);
     staged.checkAllWritten();
-    const auto inputs = hashInputs(inputFilesOf(job, result));
+    const auto inputs = hashInputs(filesRead(job, result.inputFiles));
 
     // Commit: the old manifest goes first (so it never vouches for a mixed set),
     // then the outputs as a set, then the new manifest, last.
