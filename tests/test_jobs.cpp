@@ -233,14 +233,20 @@ TEST_CASE("run: a job that fails leaves nothing behind", "[jobs]") {
   CHECK(r.exitCode == 1);
   CHECK_THAT(r.output, Catch::Contains("[failed] broken: "));
   CHECK_THAT(r.output, Catch::Contains("broken.exr"));
-  bool endSeen = false;
-  for (const auto& e : events(r.output))
+  std::vector<std::string> kinds;
+  for (const auto& e : events(r.output)) {
+    kinds.push_back(e.value("event", ""));
+    if (e.value("event", "") == "job_start") CHECK(e["id"] == "broken");
     if (e.value("event", "") == "job_end") {
-      endSeen = true;
       CHECK(e["status"] == "failed");
-      CHECK(e.contains("seconds"));
+      CHECK(e["seconds"].is_number());
+      CHECK_THAT(e["error"].get<std::string>(), Catch::Contains("broken.exr"));
     }
-  CHECK(endSeen);
+    if (e.value("event", "") == "summary") CHECK(e["failed"] == 1);
+  }
+  CHECK(std::count(kinds.begin(), kinds.end(), "job_start") == 1);
+  CHECK(std::count(kinds.begin(), kinds.end(), "job_end") == 1);
+  CHECK((!kinds.empty() && kinds.back() == "summary"));
   // The output directory may exist, but holds no output, staging file or manifest.
   std::vector<std::string> left;
   std::error_code ec;
