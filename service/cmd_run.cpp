@@ -1,0 +1,49 @@
+// prtbake run: run the jobs of one or more job files (docs/jobs.md).
+#include <sstream>
+
+#include "cli.h"
+#include "prtbake/error.h"
+#include "runner.h"
+
+namespace prtbake::cli {
+namespace {
+
+std::set<std::string> parseIdList(const std::string& text) {
+  std::set<std::string> ids;
+  std::stringstream ss(text);
+  std::string id;
+  while (std::getline(ss, id, ','))
+    if (!id.empty()) ids.insert(id);
+  if (ids.empty()) throw UsageError("--jobs", "expected a comma-separated list of job ids");
+  return ids;
+}
+
+int runRun(const CommandLine& cl) {
+  jobs::RunOptions options;
+  options.force = cl.has("force");
+  options.dryRun = cl.has("dry-run");
+  options.device = cl.device();
+  if (cl.has("jobs")) options.only = parseIdList(cl.get("jobs"));
+  jobs::Reporter reporter(cl.quiet(), cl.has("log-json"));
+  jobs::Runner runner(options, reporter);
+  std::vector<jobs::JobFileRef> files;
+  for (const auto& p : cl.positional) files.push_back({p, p, ""});
+  const jobs::RunTotals totals = runner.run(files);
+  runner.printSummary(totals);
+  return totals.allSucceeded() ? 0 : 1;
+}
+
+PRTBAKE_COMMAND(Command{
+    "run", "run the jobs of job files (skips jobs whose outputs are up to date)",
+    "prtbake run JOBFILE... [--force] [--jobs ID,...] [--dry-run]\n\n"
+    "Validates every job file first and reports every problem; runs the valid jobs on one\n"
+    "OpenCL runtime (started only if some job has work to do); each job's outputs appear\n"
+    "together or not at all, followed by <first output>.manifest.json. Exit code 0 when\n"
+    "every job succeeded or was up to date, 1 otherwise, 2 for usage errors. See docs/jobs.md.",
+    {{"force", false, "rerun jobs even when their manifest shows them up to date"},
+     {"jobs", true, "run only the jobs with these ids (comma-separated)"},
+     {"dry-run", false, "validate and print what would run, without running anything"}},
+    1, 1000000, runRun});
+
+}  // namespace
+}  // namespace prtbake::cli

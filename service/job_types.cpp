@@ -1,0 +1,165 @@
+// The job types of this build: their schemas (the keys of the matching command
+// line, with the same defaults and ranges) and their executors, each a thin
+// call into the library. Adding a product = one entry in jobTypes() and one
+// executor function here.
+#include <chrono>
+
+#include "jobs.h"
+#include "prtbake/env_sh.h"
+#include "prtbake/error.h"
+#include "prtbake/hash.h"
+#include "prtbake/sh.h"
+
+namespace prtbake::jobs {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+json hashList(const std::vector<std::string>& files) {
+  json inputs = json::array();
+  for (const auto& f : files) inputs.push_back({{"path", f}, {"sha256", sha256File(f)}});
+  return inputs;
+}
+
+// --- env: environment map → SH coefficients (prtbake env) ---
+ExecResult runEnv(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  EnvLoadOptions loadOptions;
+  loadOptions.layout = p["layout"].get<std::string>();
+  loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
+  const auto t0 = std::chrono::steady_clock::now();
+  EnvMap env = loadEnvironment(job.input, loadOptions);
+  env.yawDegrees = p["yaw"].get<double>();
+  const double loadSeconds = secondsSince(t0);
+
+  EnvProjectOptions options;
+  options.order = p["order"].get<int>();
+  options.quantity = parseQuantity(p["quantity"].get<std::string>());
+  options.window = parseWindow(p["window"].get<std::string>());
+  Runtime& rt = ctx.runtime();
+  const auto t1 = std::chrono::steady_clock::now();
+  const EnvProjectResult r = projectEnvironment(rt, env, options);
+  const double projectSeconds = secondsSince(t1);
+
+  ExecResult result;
+  result.inputFiles = filesRead(job, env.inputFiles);
+  result.report = {{"texels", r.texels},
+                   {"layout", env.layoutName},
+                   {"clamped_texels", env.clampedTexels},
+                   {"window_weights", r.windowWeights},
+                   {"auto_window_lambda", r.autoWindowLambda},
+                   {"min_irradiance_before_window", r.minIrradianceBefore},
+                   {"min_irradiance_after_window", r.minIrradianceAfter},
+                   {"timings", {{"load_seconds", loadSeconds},
+                                {"project_seconds", projectSeconds},
+                                {"kernel_seconds", r.kernelSeconds},
+                                {"upload_seconds", r.uploadSeconds}}}};
+  if (ctx.wants("json")) {
+    const json meta = {{"job", job.id},
+                       {"parameters", p},
+                       {"inputs", hashList(result.inputFiles)},
+                       {"device", rt.deviceLabel()},
+                       {"product", result.report}};
+    writeShJson(ctx.output("json"), r.coeffs, meta.dump());
+  }
+  if (ctx.wants("games202")) writeGames202Light(ctx.output("games202"), r.coeffs);
+  return result;
+}
+
+// --- transport: mesh → per-vertex PRT transfer (prtbake transport) ---
+// NOT WIRED YET: replaced by the call into the transport library when it is
+// merged (load the mesh, compute the transfer with job.params, write the
+// outputs requested in ctx.outputPaths: npy, gltf, games202, json).
+ExecResult runTransport(const Job& job, ExecContext&) {
+  throw Error(job.id, "job type 'transport' is not available in this build");
+}
+
+// --- lut: split-sum BRDF lookup table (prtbake lut) ---
+// NOT WIRED YET: replaced by the call into the LUT library when it is merged
+// (compute the table with job.params, write ctx.output("exr") and, when
+// requested, the json sidecar).
+ExecResult runLut(const Job& job, ExecContext&) {
+  throw Error(job.id, "job type 'lut' is not available in this build");
+}
+
+KeySpec integer(const std::string& name, long long def, double lo, double hi) {
+  return {name, ValueKind::Integer, def, lo, hi, {}};
+}
+KeySpec number(const std::string& name, json def, double lo, double hi) {
+  return {name, ValueKind::Number, std::move(def), lo, hi, {}};
+}
+KeySpec boolean(const std::string& name, bool def) { return {name, ValueKind::Boolean, def, 0, 0, {}}; }
+KeySpec choice(const std::string& name, const std::string& def, std::vector<std::string> choices) {
+  return {name, ValueKind::Choice, def, 0, 0, std::move(choices)};
+}
+
+std::vector<JobType> makeJobTypes() {
+  std::vector<JobType> types;
+
+  JobType env;
+  env.name = "env";
+  env.input = InputKind::FileOrDirectory;
+  env.outputKinds = {"json", "games202"};
+  env.keys = {integer("order", 3, 1, kMaxShOrder),
+              choice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"}),
+              choice("quantity", "radiance", {"radiance", "irradiance", "irradiance_over_pi"}),
+              choice("window", "none", {"none", "hann", "lanczos", "auto"}),
+              number("yaw", 0.0, -360.0, 360.0),
+              boolean("clamp_invalid", false)};
+  env.execute = runEnv;
+  types.push_back(env);
+
+  JobType transport;
+  transport.name = "transport";
+  transport.input = InputKind::File;
+  transport.outputKinds = {"npy", "gltf", "games202", "json"};
+  transport.keys = {choice("mode", "shadowed", {"unshadowed", "shadowed", "interreflected"}),
+                    integer("bounces", 1, 0, 64),
+                    integer("order", 3, 1, kMaxShOrder),
+                    integer("samples", 1024, 1, 1 << 24),
+                    integer("seed", 0, 0, 4294967295.0),
+                    number("tolerance", nullptr, 1e-9, 1.0)};
+  transport.check = [](const json& raw, const json& p) {
+    std::vector<std::pair<std::string, std::string>> problems;
+    // --samples N | --tolerance E: a tolerance picks the sample count itself.
+    if (raw.contains("tolerance") && raw.contains("samples"))
+      problems.push_back({"tolerance", "cannot be combined with samples (give one or the other)"});
+    if (raw.contains("bounces") && p["mode"] != "interreflected")
+      problems.push_back({"bounces", "only applies to mode 'interreflected'"});
+    return problems;
+  };
+  transport.execute = runTransport;
+  types.push_back(transport);
+
+  JobType lut;
+  lut.name = "lut";
+  lut.input = InputKind::None;
+  lut.outputKinds = {"exr", "json"};
+  lut.keys = {integer("size", 128, 1, 8192),
+              integer("samples", 1024, 1, 1 << 24),
+              choice("ndf", "ggx", {"ggx", "beckmann"}),
+              choice("visibility", "smith-correlated", {"smith-correlated", "smith-separable", "schlick-ggx"}),
+              boolean("multiscatter", false),
+              boolean("cloth", false),
+              boolean("half", false)};
+  lut.check = [](const json&, const json& p) {
+    std::vector<std::pair<std::string, std::string>> problems;
+    if (p["multiscatter"] == true && p["cloth"] == true)
+      problems.push_back({"cloth", "cannot be combined with multiscatter (both use the B channel)"});
+    return problems;
+  };
+  lut.execute = runLut;
+  types.push_back(lut);
+  return types;
+}
+
+}  // namespace
+
+const std::vector<JobType>& jobTypes() {
+  static const std::vector<JobType> types = makeJobTypes();
+  return types;
+}
+
+}  // namespace prtbake::jobs

@@ -1,0 +1,404 @@
+// Job files: loading, schema validation and path resolution (see jobs.h).
+#include "jobs.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+
+namespace prtbake::jobs {
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::vector<std::string> kCommonKeys = {"id", "type", "input", "outputs"};
+
+std::string joinChoices(const std::vector<std::string>& v, const char* sep = "|") {
+  std::string s;
+  for (const auto& c : v) s += (s.empty() ? "" : sep) + c;
+  return s;
+}
+
+std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates) {
+  const std::string m = closestMatch(word, candidates);
+  return m.empty() ? "" : " (did you mean '" + m + "'?)";
+}
+
+// A JSON value as it appeared, shortened for messages.
+std::string shown(const json& v) {
+  std::string s = v.dump();
+  if (s.size() > 40) s = s.substr(0, 37) + "...";
+  return s;
+}
+
+bool validId(const std::string& id) {
+  if (id.empty() || id.size() > 128) return false;
+  return std::all_of(id.begin(), id.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-';
+  });
+}
+
+std::string formatNumber(double v) {
+  std::ostringstream ss;
+  ss << v;
+  return ss.str();
+}
+
+// Checks one key's value against its spec; returns the problem text or "".
+std::string checkValue(const KeySpec& k, const json& v, json* normalised) {
+  switch (k.kind) {
+    case ValueKind::Integer: {
+      double d;
+      if (v.is_number_integer() || v.is_number_unsigned()) {
+        d = v.get<double>();
+      } else if (v.is_number_float() && std::isfinite(v.get<double>()) &&
+                 v.get<double>() == std::floor(v.get<double>())) {
+        d = v.get<double>();
+      } else {
+        return "expected an integer, got " + shown(v);
+      }
+      if (d < k.lo || d > k.hi)
+        return formatNumber(d) + " is out of range [" + formatNumber(k.lo) + ", " + formatNumber(k.hi) + "]";
+      *normalised = static_cast<long long>(d);
+      return "";
+    }
+    case ValueKind::Number: {
+      if (!v.is_number()) return "expected a number, got " + shown(v);
+      const double d = v.get<double>();
+      if (!std::isfinite(d) || d < k.lo || d > k.hi)
+        return formatNumber(d) + " is out of range [" + formatNumber(k.lo) + ", " + formatNumber(k.hi) + "]";
+      *normalised = d;
+      return "";
+    }
+    case ValueKind::Boolean:
+      if (!v.is_boolean()) return "expected true or false, got " + shown(v);
+      *normalised = v;
+      return "";
+    case ValueKind::Choice: {
+      if (!v.is_string()) return "expected one of " + joinChoices(k.choices) + ", got " + shown(v);
+      const std::string s = v.get<std::string>();
+      if (std::find(k.choices.begin(), k.choices.end(), s) == k.choices.end())
+        return "unknown value '" + s + "' (expected " + joinChoices(k.choices) + ")" +
+               (closestMatch(s, k.choices).empty() ? "" : "; did you mean '" + closestMatch(s, k.choices) + "'?");
+      *normalised = s;
+      return "";
+    }
+  }
+  return "";
+}
+
+class JobValidator {
+ public:
+  JobValidator(Job& job, const fs::path& baseDir) : job_(job), baseDir_(baseDir) {}
+
+  void validate(const json& j, size_t position) {
+    job_.label = "#" + std::to_string(position);
+    if (!j.is_object()) {
+      problem("", "expected an object, got " + shown(j));
+      return;
+    }
+    checkId(j);
+    if (!checkType(j)) return;
+    const JobType& t = *job_.type;
+    json params = json::object();
+    params["id"] = job_.id;
+    params["type"] = t.name;
+
+    std::vector<std::string> known = kCommonKeys;
+    for (const auto& k : t.keys) known.push_back(k.name);
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      if (std::find(known.begin(), known.end(), it.key()) != known.end()) continue;
+      problem(it.key(), "unknown key for " + t.name + " jobs" + didYouMean(it.key(), known));
+    }
+    for (const auto& k : t.keys) {
+      auto it = j.find(k.name);
+      if (it == j.end()) {
+        params[k.name] = k.defaultValue;
+        continue;
+      }
+      json value;
+      const std::string what = checkValue(k, *it, &value);
+      if (!what.empty()) problem(k.name, what);
+      params[k.name] = value;
+    }
+    checkInput(j, &params);
+    checkOutputs(j, &params);
+    if (job_.valid() && t.check)
+      for (const auto& [key, what] : t.check(j, params)) problem(key, what);
+    job_.params = params;
+    if (!job_.outputs.empty()) job_.manifestPath = job_.outputs.front().path + ".manifest.json";
+  }
+
+ private:
+  void problem(const std::string& key, const std::string& what) { job_.problems.push_back({job_.label, key, what}); }
+
+  std::string resolve(const std::string& p) const { return (baseDir_ / p).lexically_normal().string(); }
+
+  void checkId(const json& j) {
+    auto it = j.find("id");
+    if (it == j.end()) {
+      problem("id", "missing");
+    } else if (!it->is_string()) {
+      problem("id", "expected a string, got " + shown(*it));
+    } else if (!validId(it->get<std::string>())) {
+      problem("id", "'" + it->get<std::string>() +
+                        "' is not a valid id (1 to 128 letters, digits, '.', '_' or '-')");
+    } else {
+      job_.id = job_.label = it->get<std::string>();
+    }
+  }
+
+  bool checkType(const json& j) {
+    std::vector<std::string> names;
+    for (const auto& t : jobTypes()) names.push_back(t.name);
+    auto it = j.find("type");
+    if (it == j.end()) {
+      problem("type", "missing (expected " + joinChoices(names) + ")");
+      return false;
+    }
+    if (!it->is_string()) {
+      problem("type", "expected one of " + joinChoices(names) + ", got " + shown(*it));
+      return false;
+    }
+    job_.type = findJobType(it->get<std::string>());
+    if (!job_.type) {
+      const std::string s = it->get<std::string>();
+      problem("type", "unknown job type '" + s + "' (expected " + joinChoices(names) + ")" +
+                          (closestMatch(s, names).empty() ? "" : "; did you mean '" + closestMatch(s, names) + "'?"));
+      return false;
+    }
+    return true;
+  }
+
+  void checkInput(const json& j, json* params) {
+    const JobType& t = *job_.type;
+    auto it = j.find("input");
+    if (t.input == InputKind::None) {
+      if (it != j.end()) problem("input", t.name + " jobs take no input");
+      return;
+    }
+    if (it == j.end()) {
+      problem("input", "missing");
+      return;
+    }
+    if (!it->is_string() || it->get<std::string>().empty()) {
+      problem("input", "expected a path, got " + shown(*it));
+      return;
+    }
+    const std::string path = resolve(it->get<std::string>());
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) {
+      problem("input", "file does not exist: " + path);
+      return;
+    }
+    if (S_ISDIR(st.st_mode) && t.input != InputKind::FileOrDirectory) {
+      problem("input", "is a directory, expected a file: " + path);
+      return;
+    }
+    if (::access(path.c_str(), R_OK) != 0) {
+      problem("input", "cannot be read: " + path);
+      return;
+    }
+    job_.input = path;
+    (*params)["input"] = path;
+  }
+
+  void checkOutputs(const json& j, json* params) {
+    const JobType& t = *job_.type;
+    const std::string expected = joinChoices(t.outputKinds, ", ");
+    auto it = j.find("outputs");
+    if (it == j.end()) {
+      problem("outputs", "missing (expected an object naming one or more of " + expected + ")");
+      return;
+    }
+    if (!it->is_object() || it->empty()) {
+      problem("outputs", "expected an object naming one or more of " + expected + ", got " + shown(*it));
+      return;
+    }
+    for (auto o = it->begin(); o != it->end(); ++o)
+      if (std::find(t.outputKinds.begin(), t.outputKinds.end(), o.key()) == t.outputKinds.end())
+        problem("outputs." + o.key(), "not an output of " + t.name + " jobs (expected " + expected + ")" +
+                                          didYouMean(o.key(), t.outputKinds));
+    json outs = json::object();
+    for (const auto& kind : t.outputKinds) {  // the type's order: the first one names the manifest
+      auto o = it->find(kind);
+      if (o == it->end()) continue;
+      const std::string key = "outputs." + kind;
+      if (!o->is_string() || o->get<std::string>().empty()) {
+        problem(key, "expected a path, got " + shown(*o));
+        continue;
+      }
+      const std::string path = resolve(o->get<std::string>());
+      struct stat st {};
+      if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+        problem(key, "is a directory: " + path);
+        continue;
+      }
+      if (!job_.input.empty() && path == job_.input) {
+        problem(key, "would overwrite the job's input: " + path);
+        continue;
+      }
+      job_.outputs.push_back({kind, path});
+      outs[kind] = path;
+    }
+    (*params)["outputs"] = outs;
+  }
+
+  Job& job_;
+  fs::path baseDir_;
+};
+
+}  // namespace
+
+const Output* Job::findOutput(const std::string& kind) const {
+  for (const auto& o : outputs)
+    if (o.kind == kind) return &o;
+  return nullptr;
+}
+
+std::vector<std::string> filesRead(const Job& job, const std::vector<std::string>& reported) {
+  std::vector<std::string> files;
+  if (!reported.empty()) {
+    for (const auto& f : reported) files.push_back(fs::absolute(f).lexically_normal().string());
+    return files;
+  }
+  if (job.input.empty()) return files;
+  if (!fs::is_directory(job.input)) return {job.input};
+  for (const auto& e : fs::directory_iterator(job.input))
+    if (e.is_regular_file()) files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+const JobType* findJobType(const std::string& name) {
+  for (const auto& t : jobTypes())
+    if (t.name == name) return &t;
+  return nullptr;
+}
+
+JobFile loadJobFile(const std::string& path, const std::string& baseDir) {
+  JobFile file;
+  file.path = path;
+  std::string text;
+  try {
+    text = readFile(path);
+  } catch (const Error& e) {
+    file.fileProblems.push_back({"", "", e.detail()});
+    return file;
+  }
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    std::string what = e.what();
+    if (auto pos = what.find("] "); what.rfind("[json.exception", 0) == 0 && pos != std::string::npos)
+      what = what.substr(pos + 2);
+    file.fileProblems.push_back({"", "", what});
+    return file;
+  }
+  if (!root.is_object()) {
+    file.fileProblems.push_back({"", "", "expected an object {\"jobs\": [...]}, got " + shown(root)});
+    return file;
+  }
+  for (auto it = root.begin(); it != root.end(); ++it)
+    if (it.key() != "jobs")
+      file.fileProblems.push_back({"", it.key(), "unknown key" + didYouMean(it.key(), {"jobs"})});
+  auto jobs = root.find("jobs");
+  if (jobs == root.end() || !jobs->is_array()) {
+    file.fileProblems.push_back({"", "jobs", jobs == root.end() ? "missing" : "expected an array, got " + shown(*jobs)});
+    return file;
+  }
+  const fs::path base = baseDir.empty() ? fs::absolute(path).parent_path() : fs::absolute(baseDir);
+  std::map<std::string, std::string> firstPosition;  // id → label of its first job
+  size_t position = 0;
+  for (const auto& j : *jobs) {
+    Job job;
+    job.jobFile = path;
+    JobValidator(job, base).validate(j, ++position);
+    if (!job.id.empty()) {
+      auto [it, inserted] = firstPosition.emplace(job.id, "#" + std::to_string(position));
+      if (!inserted)
+        job.problems.push_back({job.label, "id",
+                                "duplicate id: job #" + std::to_string(position) + " repeats the id of job " + it->second});
+    }
+    file.jobs.push_back(std::move(job));
+  }
+  return file;
+}
+
+void checkOutputConflicts(std::vector<JobFile>& files) {
+  struct Owner {
+    const Job* job;
+    std::string key;
+  };
+  std::map<std::string, Owner> owners;  // canonical path → first writer
+  for (auto& file : files) {
+    for (auto& job : file.jobs) {
+      if (!job.valid()) continue;
+      std::vector<std::pair<std::string, std::string>> written;  // key, path
+      for (const auto& o : job.outputs) written.push_back({"outputs." + o.kind, o.path});
+      written.push_back({"manifest", job.manifestPath});
+      std::vector<Problem> found;
+      for (const auto& [key, path] : written) {
+        std::error_code ec;
+        const std::string canon = fs::weakly_canonical(path, ec).string();
+        const std::string id = ec ? path : canon;
+        auto [it, inserted] = owners.emplace(id, Owner{&job, key});
+        if (inserted) continue;
+        const Owner& first = it->second;
+        std::string who = first.job == &job ? first.key
+                                            : "job '" + first.job->label + "'" +
+                                                  (first.job->jobFile == job.jobFile ? "" : " of " + first.job->jobFile) +
+                                                  " (" + first.key + ")";
+        found.push_back({job.label, key, path + " is also written by " + who});
+      }
+      job.problems.insert(job.problems.end(), found.begin(), found.end());
+    }
+  }
+}
+
+std::string formatProblem(const std::string& jobFile, const Problem& p) {
+  std::string s = jobFile + ": ";
+  if (!p.job.empty()) s += "job '" + p.job + "': ";
+  if (!p.key.empty()) s += p.key + ": ";
+  return s + p.what;
+}
+
+std::string closestMatch(const std::string& word, const std::vector<std::string>& candidates) {
+  // Optimal-string-alignment distance (a transposition counts as one edit), case-insensitive.
+  auto lower = [](std::string s) {
+    for (auto& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+  };
+  const std::string a = lower(word);
+  std::string best;
+  size_t bestDistance = std::string::npos;
+  for (const auto& candidate : candidates) {
+    const std::string b = lower(candidate);
+    std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+    for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+    for (size_t k = 0; k <= b.size(); ++k) d[0][k] = k;
+    for (size_t i = 1; i <= a.size(); ++i)
+      for (size_t k = 1; k <= b.size(); ++k) {
+        d[i][k] = std::min({d[i - 1][k] + 1, d[i][k - 1] + 1, d[i - 1][k - 1] + (a[i - 1] != b[k - 1])});
+        if (i > 1 && k > 1 && a[i - 1] == b[k - 2] && a[i - 2] == b[k - 1])
+          d[i][k] = std::min(d[i][k], d[i - 2][k - 2] + 1);
+      }
+    if (d[a.size()][b.size()] < bestDistance) {
+      bestDistance = d[a.size()][b.size()];
+      best = candidate;
+    }
+  }
+  // Close enough to be a slip: at most 2 edits, and fewer than half the word.
+  if (bestDistance == std::string::npos || bestDistance > 2 || 2 * bestDistance >= std::max<size_t>(a.size(), 2))
+    return "";
+  return best;
+}
+
+}  // namespace prtbake::jobs

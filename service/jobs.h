@@ -1,0 +1,123 @@
+// Job files: the registry of job types, their schemas, and loading and
+// validating a job file (docs/jobs.md is the user-facing description).
+//
+// A job file is {"jobs": [{"id": ..., "type": ..., "input": ..., "outputs": {...}, ...}]}.
+// Each job type declares its keys (name, kind, range or choices, default), the
+// output kinds it can write and whether it reads an input; validation checks a
+// whole file before anything runs and collects every problem of every job, so
+// that one bad job never hides another and never stops the valid ones.
+// Nothing here computes anything: executors call the library (job_types.cpp).
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "prtbake/runtime.h"
+
+namespace prtbake::jobs {
+
+using nlohmann::json;
+
+enum class ValueKind { Integer, Number, Boolean, Choice };
+
+// One key of a job type, named and typed like the command-line option it mirrors.
+struct KeySpec {
+  std::string name;
+  ValueKind kind;
+  json defaultValue;                 // null: the key is optional and has no default
+  double lo = 0, hi = 0;             // inclusive range of Integer and Number keys
+  std::vector<std::string> choices;  // the values of a Choice key
+};
+
+struct Job;
+
+// What an executor gets besides the job: the shared OpenCL runtime (created on
+// first use) and the paths to write each requested output to. The runner moves
+// those files to their final names only when the whole job has succeeded.
+struct ExecContext {
+  std::function<Runtime&()> runtime;
+  std::map<std::string, std::string> outputPaths;  // output kind → path to write
+  const std::string& output(const std::string& kind) const { return outputPaths.at(kind); }
+  bool wants(const std::string& kind) const { return outputPaths.count(kind) != 0; }
+};
+
+struct ExecResult {
+  std::vector<std::string> inputFiles;  // every file the product read (for the manifest)
+  json report = json::object();         // sample counts, error estimates, product timings
+};
+
+enum class InputKind { None, File, FileOrDirectory };
+
+struct JobType {
+  std::string name;
+  InputKind input = InputKind::None;
+  std::vector<std::string> outputKinds;  // allowed kinds, in manifest-naming order
+  std::vector<KeySpec> keys;
+  // Cross-key rules (e.g. samples excludes tolerance), given the job as written and
+  // its normalised parameters; returns {key, what} problems.
+  std::function<std::vector<std::pair<std::string, std::string>>(const json& raw, const json& params)> check;
+  std::function<ExecResult(const Job&, ExecContext&)> execute;
+};
+
+// Every job type of this build (job_types.cpp).
+const std::vector<JobType>& jobTypes();
+const JobType* findJobType(const std::string& name);
+
+// A problem found while validating. `job` is the job's label ("id" or "#N" when
+// it has no usable id); empty for problems of the file as a whole.
+struct Problem {
+  std::string job;
+  std::string key;  // "order", "outputs.json", ... (empty when it is about the job itself)
+  std::string what;
+};
+
+struct Output {
+  std::string kind;
+  std::string path;  // absolute, normalised
+};
+
+struct Job {
+  std::string label;               // id, or "#N" (1-based position) when the id is unusable
+  std::string id;                  // empty when missing or invalid
+  const JobType* type = nullptr;
+  std::string jobFile;             // as named on the command line (for messages)
+  std::string input;               // absolute path; empty for types without input
+  std::vector<Output> outputs;     // in the type's output-kind order
+  json params;                     // normalised: every key with its default, absolute paths
+  std::string manifestPath;        // <first output>.manifest.json
+  std::vector<Problem> problems;   // empty ⇔ the job is valid
+
+  bool valid() const { return problems.empty(); }
+  const Output* findOutput(const std::string& kind) const;
+};
+
+struct JobFile {
+  std::string path;                 // as given (used in messages)
+  std::vector<Job> jobs;
+  std::vector<Problem> fileProblems;  // unreadable file, JSON syntax error, bad top level
+};
+
+// Loads and validates `path`. Relative paths inside resolve against `baseDir`
+// (default: the job file's own directory). Never throws for bad content: every
+// problem is recorded in the result.
+JobFile loadJobFile(const std::string& path, const std::string& baseDir = "");
+
+// Every file a job read, absolute: the product's list, or else the input itself
+// (every regular file in it when it is a directory).
+std::vector<std::string> filesRead(const Job& job, const std::vector<std::string>& reported);
+
+// Marks jobs (across all files) that write a file another job writes, or whose
+// manifest would collide with another job's file. The first writer keeps it.
+void checkOutputConflicts(std::vector<JobFile>& files);
+
+// "prtbake: error: <jobfile>: job '<id>': <key>: <what>" (without the "prtbake: error: ").
+std::string formatProblem(const std::string& jobFile, const Problem& p);
+
+// The candidate closest to `word` by edit distance, or "" when none is close.
+std::string closestMatch(const std::string& word, const std::vector<std::string>& candidates);
+
+}  // namespace prtbake::jobs

@@ -1,0 +1,289 @@
+// The batch runner (see runner.h).
+#include "runner.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+
+#include "manifest.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+
+namespace prtbake::jobs {
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+std::string formatSeconds(double s) {
+  std::ostringstream ss;
+  ss << std::fixed << std::setprecision(2) << s << " s";
+  return ss.str();
+}
+
+std::string dirOf(const std::string& path) { return fs::path(path).parent_path().string(); }
+
+void fsyncDir(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+
+// The outputs of one job while it runs. The product writes each output to a
+// staging name in the output's directory (".stage.prtbake-tmp.<pid>.<n>.<kind><ext>":
+// hidden, short, with the output's extension for writers that look at it, and
+// recognised by removeStaleTempFiles after a kill);
+// commit() renames them all to their final names, or removes every one of them
+// (and any already renamed) when a rename fails. Uncommitted staging files are
+// removed on destruction, so a failed job leaves nothing behind.
+class StagedOutputs {
+ public:
+  explicit StagedOutputs(const Job& job) {
+    static int counter = 0;
+    for (const auto& o : job.outputs) {
+      const fs::path p(o.path);
+      const std::string staging =
+          (p.parent_path() / (".stage.prtbake-tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++) +
+                              "." + o.kind + p.extension().string()))
+              .string();
+      paths_[o.kind] = staging;
+      order_.push_back({staging, o.path});
+    }
+  }
+  ~StagedOutputs() {
+    for (const auto& [staging, final] : order_) ::unlink(staging.c_str());
+  }
+  StagedOutputs(const StagedOutputs&) = delete;
+  StagedOutputs& operator=(const StagedOutputs&) = delete;
+
+  const std::map<std::string, std::string>& paths() const { return paths_; }
+
+  void checkAllWritten() const {
+    struct stat st {};
+    for (const auto& [kind, staging] : paths_)
+      if (::stat(staging.c_str(), &st) != 0)
+        throw OutputError("outputs." + kind, "the product did not write this output");
+  }
+
+  void commit() {
+    std::vector<std::string> committed;
+    for (const auto& [staging, final] : order_) {
+      if (::rename(staging.c_str(), final.c_str()) != 0) {
+        const std::string why = std::strerror(errno);
+        for (const auto& c : committed) ::unlink(c.c_str());
+        throw OutputError(final, "rename failed: " + why);
+      }
+      committed.push_back(final);
+    }
+    std::set<std::string> dirs;
+    for (const auto& c : committed) dirs.insert(dirOf(c));
+    for (const auto& d : dirs) fsyncDir(d);
+    order_.clear();  // nothing left to clean up
+  }
+
+ private:
+  std::map<std::string, std::string> paths_;                 // kind → staging path
+  std::vector<std::pair<std::string, std::string>> order_;   // staging, final
+};
+
+// The reason an exception gives, without repeating the job id.
+std::string reasonOf(const Job& job, const std::exception& e) {
+  if (auto* pe = dynamic_cast<const Error*>(&e); pe && pe->subject() == job.id) return pe->detail();
+  return e.what();
+}
+
+}  // namespace
+
+void Reporter::status(const std::string& line) {
+  if (capture_) *capture_ << line << "\n";
+  if (!quiet_) std::cout << line << std::endl;
+}
+
+void Reporter::error(const std::string& line) {
+  if (capture_) *capture_ << "error: " << line << "\n";
+  std::cerr << "prtbake: error: " << line << std::endl;
+}
+
+void Reporter::event(json e) {
+  if (!logJson_) return;
+  e["time"] = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  std::cerr << e.dump() << std::endl;
+}
+
+Runner::Runner(RunOptions options, Reporter& reporter) : options_(std::move(options)), reporter_(reporter) {}
+Runner::~Runner() = default;
+
+Runtime& Runner::runtime() {
+  if (!runtime_) {
+    const auto t0 = Clock::now();
+    runtime_ = std::make_unique<Runtime>(options_.device);
+    runtimeStartupSeconds_ = secondsSince(t0);
+    reporter_.event({{"event", "runtime_start"}, {"device", runtime_->deviceLabel()},
+                     {"seconds", runtimeStartupSeconds_}});
+  }
+  return *runtime_;
+}
+
+RunTotals Runner::run(const std::vector<JobFileRef>& refs) {
+  const auto t0 = Clock::now();
+  RunTotals totals;
+  std::vector<JobFile> files;
+  for (const auto& ref : refs) {
+    JobFile f = loadJobFile(ref.path, ref.baseDir);
+    const std::string display = ref.display.empty() ? ref.path : ref.display;
+    f.path = display;
+    for (auto& job : f.jobs) job.jobFile = display;
+    if (!options_.only.empty())  // --jobs: drop the others before they are judged
+      f.jobs.erase(std::remove_if(f.jobs.begin(), f.jobs.end(),
+                                  [&](const Job& j) { return !options_.only.count(j.id); }),
+                   f.jobs.end());
+    files.push_back(std::move(f));
+  }
+  for (const auto& id : options_.only) {
+    bool found = false;
+    for (const auto& f : files)
+      for (const auto& j : f.jobs) found = found || j.id == id;
+    bool fileProblems = false;
+    for (const auto& f : files) fileProblems = fileProblems || !f.fileProblems.empty();
+    if (!found && !fileProblems) throw UsageError("--jobs", "no job file has a job with id '" + id + "'");
+  }
+  checkOutputConflicts(files);
+
+  // Every problem first, before anything runs: one bad job never hides another.
+  for (const auto& f : files) {
+    if (!f.fileProblems.empty()) ++totals.badFiles;
+    for (const auto& p : f.fileProblems) {
+      reporter_.error(formatProblem(f.path, p));
+      reporter_.event({{"event", "error"}, {"file", f.path}, {"key", p.key}, {"message", p.what}});
+    }
+    for (const auto& job : f.jobs)
+      for (const auto& p : job.problems) {
+        reporter_.error(formatProblem(f.path, p));
+        reporter_.event({{"event", "error"}, {"file", f.path}, {"job", p.job}, {"key", p.key}, {"message", p.what}});
+      }
+  }
+  for (const auto& f : files)
+    for (const auto& job : f.jobs) runJob(job, totals);
+  totals.seconds = secondsSince(t0);
+  return totals;
+}
+
+void Runner::runJob(const Job& job, RunTotals& totals) {
+  const auto t0 = Clock::now();
+  json end = {{"event", "job_end"}, {"file", job.jobFile}, {"id", job.label}};
+  reporter_.event({{"event", "job_start"}, {"file", job.jobFile}, {"id", job.label},
+                   {"type", job.type ? job.type->name : ""}});
+  auto fail = [&](const std::string& reason) {
+    ++totals.failed;
+    end["status"] = "failed";
+    end["error"] = reason;
+    end["seconds"] = secondsSince(t0);
+    reporter_.status("[failed] " + job.label + ": " + reason);
+    if (reporter_.quiet() && job.valid()) reporter_.error(job.jobFile + ": job '" + job.label + "': " + reason);
+    reporter_.event(end);
+  };
+  if (!job.valid()) {
+    const size_t n = job.problems.size();
+    fail("invalid job (" + std::to_string(n) + (n == 1 ? " problem" : " problems") + ", see above)");
+    return;
+  }
+  // Temp and staging files of killed runs, in every directory this job writes to.
+  std::set<std::string> dirs;
+  for (const auto& o : job.outputs) dirs.insert(dirOf(o.path));
+  if (!options_.dryRun)
+    for (const auto& d : dirs)
+      if (const int n = removeStaleTempFiles(d); n > 0)
+        reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
+
+  if (!options_.force) {
+    const std::string why = whyOutOfDate(job);
+    if (why.empty()) {
+      ++totals.skipped;
+      end["status"] = "skipped";
+      end["seconds"] = secondsSince(t0);
+      reporter_.status("[skipped] " + job.label + " (up to date)");
+      reporter_.event(end);
+      return;
+    }
+    end["reason"] = why;
+  }
+  if (options_.dryRun) {
+    ++totals.ok;
+    end["status"] = "would_run";
+    end["parameters"] = job.params;
+    end["seconds"] = secondsSince(t0);
+    reporter_.status("[would run] " + job.label + " (" + (options_.force ? "--force" : end["reason"].get<std::string>()) + ")");
+    reporter_.event(end);
+    return;
+  }
+
+  try {
+    for (const auto& d : dirs) fs::create_directories(d);
+    StagedOutputs staged(job);
+    ExecContext ctx{[this]() -> Runtime& { return runtime(); }, staged.paths()};
+    const double startupBefore = runtime_ ? 0.0 : -1.0;
+    const auto tRun = Clock::now();
+    const ExecResult result = job.type->execute(job, ctx);
+    const double runSeconds = secondsSince(tRun);
+    staged.checkAllWritten();
+    const auto inputs = hashInputs(filesRead(job, result.inputFiles));
+
+    // Commit: the old manifest goes first (so it never vouches for a mixed set),
+    // then the outputs as a set, then the new manifest, last.
+    if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
+      throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
+    staged.commit();
+    json timings = {{"run_seconds", runSeconds}, {"total_seconds", secondsSince(t0)}};
+    if (startupBefore < 0 && runtime_) timings["runtime_startup_seconds"] = runtimeStartupSeconds_;
+    const json manifest = makeManifest(job, inputs, runtime_ ? runtime_->deviceLabel() : "", timings, result.report);
+    try {
+      writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
+    } catch (...) {
+      for (const auto& o : job.outputs) ::unlink(o.path.c_str());
+      throw;
+    }
+  } catch (const cl::Error& e) {
+    fail(std::string("OpenCL: ") + e.what() + " (" + clErrorName(e.err()) + ")" +
+         (runtime_ ? " on " + runtime_->deviceLabel() : ""));
+    return;
+  } catch (const std::bad_alloc&) {
+    fail("out of host memory");
+    return;
+  } catch (const std::exception& e) {
+    fail(reasonOf(job, e));
+    return;
+  }
+  ++totals.ok;
+  const double seconds = secondsSince(t0);
+  end["status"] = "ok";
+  end["seconds"] = seconds;
+  reporter_.status("[ok] " + job.label + " (" + formatSeconds(seconds) + ")");
+  reporter_.event(end);
+}
+
+void Runner::printSummary(const RunTotals& t) {
+  const int total = t.ok + t.skipped + t.failed;
+  reporter_.status(std::to_string(total) + (total == 1 ? " job: " : " jobs: ") + std::to_string(t.ok) + (options_.dryRun ? " to run, " : " ok, ") +
+                   std::to_string(t.skipped) + " skipped, " + std::to_string(t.failed) + " failed (" +
+                   formatSeconds(t.seconds) + ")" +
+                   (t.badFiles ? "; " + std::to_string(t.badFiles) + " job file(s) could not be read" : ""));
+  reporter_.event({{"event", "summary"}, {"ok", t.ok}, {"skipped", t.skipped}, {"failed", t.failed},
+                   {"bad_files", t.badFiles},
+                   {"seconds", t.seconds}, {"runtime_started", runtime_ != nullptr}});
+}
+
+}  // namespace prtbake::jobs
