@@ -489,7 +489,7 @@ TEST_CASE("Tiled mip-mapped OpenEXR with an offset data window loads level 0", "
   CHECK(maxDirectionError(env, decodeFloat) < kFloatDirTol);
 }
 
-TEST_CASE("8-bit images use the exact sRGB EOTF; grey and alpha become RGB", "[env_load]") {
+TEST_CASE("8-bit images use the exact sRGB EOTF, grey and alpha become RGB", "[env_load]") {
   const int h = 16, w = 32;
   const std::string dir = test::tempDir("env-srgb");
   std::vector<unsigned char> grey(size_t(w) * h), rgba(4 * size_t(w) * h);

@@ -116,7 +116,7 @@ TEST_CASE("White furnace: lat-long", "[env][kernel]") {
   REQUIRE(c.rgb[0][0] == Approx(std::sqrt(4 * kPi)).epsilon(kFurnaceRelTol));
 }
 
-TEST_CASE("Band-limited environment is recovered; a flipped face is caught", "[env][kernel]") {
+TEST_CASE("Band-limited environment is recovered, a flipped face is caught", "[env][kernel]") {
   // Centre sampling of a quadratic on texels of size h = 2/N leaves an O(h²)
   // error; measured worst coefficient errors: 7.4e-6 (cube, N = 128) and 3.8e-5
   // (lat-long, H = 256); the negative controls below are off by 0.08 and 0.7. kRecoverTol = 5e-4 is ten times below the

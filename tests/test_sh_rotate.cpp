@@ -50,7 +50,7 @@ TEST_CASE("Exact rotation rotates the function: f'(R d) = f(d)", "[rotate]") {
   }
 }
 
-TEST_CASE("Rotation keeps band energy; exact and projection methods agree", "[rotate]") {
+TEST_CASE("Rotation keeps band energy, exact and projection methods agree", "[rotate]") {
   constexpr double kEnergyTol = 1e-6;      // acceptance bound (observed ~1e-14)
   constexpr double kMethodsAgreeTol = 1e-8;  // both are exact up to cond(A)·ε ≈ 1e4·1e-16
   for (int order : {3, 8, 16}) {
@@ -116,7 +116,7 @@ TEST_CASE("Rotating coefficients equals projecting the rotated environment", "[r
   }
 }
 
-TEST_CASE("CLI rotate: exact and projection give the same file values; bad input", "[rotate][cli]") {
+TEST_CASE("CLI rotate: exact and projection give the same file values, bad input", "[rotate][cli]") {
   const std::string dir = test::tempDir("rotatecli");
   ShCoeffs c;
   c.order = 4;
