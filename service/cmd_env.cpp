@@ -22,7 +22,14 @@ int runEnv(const CommandLine& cl) {
   const std::string output = cl.get("output");
   if (output.empty()) throw UsageError("env", "missing -o OUT.json");
   EnvProjectOptions po;
-  po.order = int(cl.getInt("order", 3, 1, kMaxShOrder));
+  // --order auto: project once at kAutoReferenceOrder, keep the smallest order
+  // up to kAutoMaxOrder whose truncation error (relative L2 over the sphere, in
+  // the requested quantity, against that reference) is within --tolerance.
+  constexpr int kAutoReferenceOrder = 24, kAutoMaxOrder = 20;
+  const bool autoOrder = cl.get("order") == "auto";
+  const double tolerance = cl.getDouble("tolerance", 0.01, 1e-9, 1.0);
+  if (cl.has("tolerance") && !autoOrder) throw UsageError("--tolerance", "only meaningful with --order auto");
+  po.order = autoOrder ? kAutoReferenceOrder : int(cl.getInt("order", 3, 1, kMaxShOrder));
   po.quantity = parseQuantity(cl.get("quantity", "radiance"));
   po.window = parseWindow(cl.get("window", "none"));
   EnvLoadOptions lo;
@@ -30,12 +37,37 @@ int runEnv(const CommandLine& cl) {
   lo.clampInvalid = cl.has("clamp-invalid");
   const double yaw = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
 
+  nlohmann::json autoCurve;
+  bool autoMet = true;
   EnvMap env = loadEnvironment(input, lo);
   env.yawDegrees = yaw;
   const double loadSeconds = secondsSince(t0);
   Runtime rt(cl.device());
   const auto t1 = std::chrono::steady_clock::now();
-  const EnvProjectResult r = projectEnvironment(rt, env, po);
+  EnvProjectResult r = projectEnvironment(rt, env, po);
+  double autoError = 0;
+  if (autoOrder) {
+    const ShCoeffs high = r.radiance;
+    int chosen = chooseShOrder(high, po.quantity, tolerance, &autoError);
+    if (chosen > kAutoMaxOrder) {
+      chosen = kAutoMaxOrder;
+      autoError = truncationError(high, po.quantity, chosen);
+    }
+    po.order = chosen;
+    r.radiance = truncateSh(high, chosen);
+    if (po.window == ShWindow::Auto)
+      r.windowWeights = deringingWindow(r.radiance, &r.autoWindowLambda, &r.minIrradianceBefore, &r.minIrradianceAfter);
+    else
+      r.windowWeights = windowWeights(po.window, chosen);
+    r.coeffs = applyWindowAndQuantity(r.radiance, r.windowWeights, po.quantity);
+    nlohmann::json curve = nlohmann::json::array();
+    for (int n = 1; n <= kAutoMaxOrder; ++n) curve.push_back(truncationError(high, po.quantity, n));
+    autoMet = autoError <= tolerance;
+    status(cl, "order auto: chose order " + std::to_string(chosen) + " (relative L2 " + toString(po.quantity) +
+                   " error " + std::to_string(autoError) + (autoMet ? " <= " : " > ") + std::to_string(tolerance) +
+                   (autoMet ? ")" : ": the tolerance is not reachable below order " + std::to_string(kAutoMaxOrder + 1) + ")"));
+    autoCurve = curve;
+  }
   const double projectSeconds = secondsSince(t1);
 
   nlohmann::json meta;
@@ -47,6 +79,16 @@ int runEnv(const CommandLine& cl) {
                         {"window", toString(po.window)},
                         {"yaw_degrees", yaw},
                         {"clamp_invalid", lo.clampInvalid}};
+  if (autoOrder)
+    meta["order_selection"] = {
+        {"method", "smallest order whose truncation error is within the tolerance"},
+        {"error_definition", "relative L2 error over the sphere of the " + std::string(toString(po.quantity)) +
+                                 ", against the order-24 projection (Parseval), all channels"},
+        {"tolerance", tolerance},
+        {"tolerance_met", autoMet},
+        {"chosen_order", po.order},
+        {"achieved_error", autoError},
+        {"error_by_order_1_to_20", autoCurve}};
   nlohmann::json hashes = nlohmann::json::object();
   for (const auto& f : env.inputFiles) hashes[f] = sha256File(f);
   meta["inputs"] = hashes;
@@ -82,13 +124,14 @@ int runEnv(const CommandLine& cl) {
 
 PRTBAKE_COMMAND(Command{
     "env", "project an HDR environment onto SH (JSON, GAMES202 light.txt)",
-    "prtbake env INPUT -o OUT.json [--order N] [--layout auto|faces|cross|latlong|games202]\n"
+    "prtbake env INPUT -o OUT.json [--order N|auto [--tolerance E]] [--layout auto|faces|cross|latlong|games202]\n"
     "       [--quantity radiance|irradiance|irradiance_over_pi] [--window none|hann|lanczos|auto]\n"
     "       [--yaw DEG] [--games202 light.txt] [--clamp-invalid]\n"
     "INPUT: an OpenEXR (cube or lat-long, envmap attribute honoured), .hdr, a cross or lat-long image,\n"
     "or a directory of six faces posx/negx/posy/negy/posz/negz (.exr .hdr .png .jpg).",
     {{"output", true, "output JSON (also -o)"},
-     {"order", true, "SH order n: bands 0..n-1, n² coefficients (1..32, default 3)"},
+     {"order", true, "SH order n: bands 0..n-1, n² coefficients (1..32, default 3), or auto"},
+     {"tolerance", true, "with --order auto: largest relative L2 error of the quantity (default 0.01)"},
      {"layout", true, "auto|faces|cross|latlong|games202 (default auto)"},
      {"quantity", true, "radiance|irradiance|irradiance_over_pi (default radiance)"},
      {"window", true, "none|hann|lanczos|auto (auto: weakest deringing window keeping irradiance >= 0)"},

@@ -70,6 +70,37 @@ ShCoeffs applyWindowAndQuantity(const ShCoeffs& radiance, const std::vector<doub
   return out;
 }
 
+double truncationError(const ShCoeffs& high, ShQuantity quantity, int order) {
+  double total = 0, tail = 0;
+  for (int l = 0; l < high.order; ++l) {
+    const double f = quantity == ShQuantity::Radiance ? 1.0 : clampedCosineFactor(l);
+    double band = 0;
+    for (int m = -l; m <= l; ++m)
+      for (double v : high.rgb[size_t(shIndex(l, m))]) band += v * v;
+    total += f * f * band;
+    if (l >= order) tail += f * f * band;
+  }
+  return total > 0 ? std::sqrt(tail / total) : 0.0;
+}
+
+int chooseShOrder(const ShCoeffs& high, ShQuantity quantity, double tolerance, double* achievedError) {
+  for (int n = 1; n <= high.order; ++n) {
+    const double e = truncationError(high, quantity, n);
+    if (e <= tolerance || n == high.order) {
+      if (achievedError) *achievedError = e;
+      return n;
+    }
+  }
+  return high.order;
+}
+
+ShCoeffs truncateSh(const ShCoeffs& c, int order) {
+  ShCoeffs out = c;
+  out.order = std::min(order, c.order);
+  out.rgb.resize(size_t(out.order) * size_t(out.order));
+  return out;
+}
+
 Rgb evalSh(const ShCoeffs& c, double x, double y, double z) {
   std::vector<double> basis(c.rgb.size());
   shEval(c.order, x, y, z, basis.data());

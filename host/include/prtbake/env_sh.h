@@ -67,6 +67,17 @@ ShCoeffs applyWindowAndQuantity(const ShCoeffs& radiance, const std::vector<doub
 std::vector<double> deringingWindow(const ShCoeffs& radiance, double* lambda, double* minBefore,
                                     double* minAfter);
 
+// Order selection ("--order auto"): the relative L2 error over the sphere of the
+// order-n truncation of `quantity` (radiance, or irradiance = Â_l-weighted),
+// measured against the given high-order projection by Parseval:
+//   ε(n) = √(Σ_{l≥n} f_l² Σ_m |L_lm|²) / √(Σ_l f_l² Σ_m |L_lm|²),  f_l = 1 or Â_l,
+// summed over the three channels. Returns the smallest n with ε(n) ≤ tolerance
+// (or the high order itself when none is), and ε(n) in *achievedError.
+double truncationError(const ShCoeffs& high, ShQuantity quantity, int order);
+int chooseShOrder(const ShCoeffs& high, ShQuantity quantity, double tolerance, double* achievedError);
+// Keeps the first `order` bands.
+ShCoeffs truncateSh(const ShCoeffs& c, int order);
+
 // Evaluates Σ c_i Y_i(ω) for each channel at a unit direction.
 Rgb evalSh(const ShCoeffs& c, double x, double y, double z);
 
