@@ -710,6 +710,31 @@ TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
       CHECK(msg.rfind(p + ": cannot decode", 0) == 0);
     }
   }
+  SECTION("truncated HDR, PNG and JPG; an HDR run of length 0 (stb_image would loop forever)") {
+    std::vector<float> hdr(3 * 64 * 32);
+    std::vector<unsigned char> ldr(3 * 64 * 32);
+    for (size_t i = 0; i < hdr.size(); ++i) {
+      hdr[i] = float(1.0 + std::sin(0.37 * double(i)));
+      ldr[i] = (unsigned char)(i * 31 % 251);
+    }
+    REQUIRE(stbi_write_hdr((dir + "/t.hdr").c_str(), 64, 32, 3, hdr.data()) != 0);
+    REQUIRE(stbi_write_png((dir + "/t.png").c_str(), 64, 32, 3, ldr.data(), 3 * 64) != 0);
+    REQUIRE(stbi_write_jpg((dir + "/t.jpg").c_str(), 64, 32, 3, ldr.data(), 90) != 0);
+    for (const char* name : {"t.hdr", "t.png", "t.jpg"}) {
+      const std::string p = dir + "/" + name;
+      const std::string bytes = readBytes(p);
+      REQUIRE(load(p).width == 64);
+      writeBytes(p, bytes.substr(0, bytes.size() / 2));
+      const std::string msg = inputErrorOf([&] { load(p); });
+      INFO(msg);
+      CHECK(msg.rfind(p + ": cannot decode", 0) == 0);
+    }
+    const std::string p = dir + "/zero-run.hdr";
+    // One 8-pixel RLE scanline (2, 2, width 0x0008) whose first count is 0.
+    writeBytes(p, std::string("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 8\n") +
+                      std::string{'\x02', '\x02', '\x00', '\x08', '\x00'} + std::string(40, '\x81'));
+    CHECK(inputErrorOf([&] { load(p, "latlong"); }).find("a run of length 0") != std::string::npos);
+  }
   SECTION("faces: missing, different sizes, not square") {
     const std::string d = dir + "/faces";
     REQUIRE(::mkdir(d.c_str(), 0755) == 0);
