@@ -10,6 +10,7 @@
 #include <ImfEnvmapAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfRgbaFile.h>
 #include <ImfTiledOutputFile.h>
 #include <stb/stb_image_write.h>
 #include <unistd.h>
@@ -487,6 +488,30 @@ TEST_CASE("Tiled mip-mapped OpenEXR with an offset data window loads level 0", "
   REQUIRE(env.width == w);
   REQUIRE(env.height == h);
   CHECK(maxDirectionError(env, decodeFloat) < kFloatDirTol);
+}
+
+TEST_CASE("Grey (Y) and luminance/chroma OpenEXR files become RGB", "[env_load]") {
+  const int h = 8, w = 16;
+  const std::string dir = test::tempDir("env-yc");
+  std::vector<float> y(size_t(w) * h);
+  for (size_t i = 0; i < y.size(); ++i) y[i] = 0.1f * float(i);
+  writeExr(dir + "/grey.exr", w, h, {{"Y", y.data()}});
+  const EnvMap g = loadEnvironment(dir + "/grey.exr");
+  for (size_t i = 0; i < y.size(); ++i)
+    for (int k = 0; k < 3; ++k) REQUIRE(g.rgb[3 * i + k] == y[i]);
+  // A constant colour through Y, RY, BY (chroma subsampled 2×2, stored in half).
+  // The RGB → YC → RGB round trip in half precision: within 1%.
+  const double kYcRelTol = 1e-2;
+  {
+    std::vector<Imf::Rgba> px(size_t(w) * h, Imf::Rgba(0.25f, 0.5f, 1.0f, 1.0f));
+    Imf::RgbaOutputFile out((dir + "/yc.exr").c_str(), w, h, Imf::WRITE_YC);
+    out.setFrameBuffer(px.data(), 1, size_t(w));
+    out.writePixels(h);
+  }
+  const EnvMap c = loadEnvironment(dir + "/yc.exr");
+  const double want[3] = {0.25, 0.5, 1.0};
+  for (size_t i = 0; i < c.texelCount(); ++i)
+    for (int k = 0; k < 3; ++k) REQUIRE(std::abs(c.rgb[3 * i + k] - want[k]) < kYcRelTol * want[k]);
 }
 
 TEST_CASE("8-bit images use the exact sRGB EOTF; grey and alpha become RGB", "[env_load]") {
