@@ -10,6 +10,7 @@
 #include <ImfEnvmapAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfRgbaFile.h>
 #include <ImfTiledOutputFile.h>
 #include <stb/stb_image_write.h>
 #include <unistd.h>
@@ -489,6 +490,30 @@ TEST_CASE("Tiled mip-mapped OpenEXR with an offset data window loads level 0", "
   CHECK(maxDirectionError(env, decodeFloat) < kFloatDirTol);
 }
 
+TEST_CASE("Grey (Y) and luminance/chroma OpenEXR files become RGB", "[env_load]") {
+  const int h = 8, w = 16;
+  const std::string dir = test::tempDir("env-yc");
+  std::vector<float> y(size_t(w) * h);
+  for (size_t i = 0; i < y.size(); ++i) y[i] = 0.1f * float(i);
+  writeExr(dir + "/grey.exr", w, h, {{"Y", y.data()}});
+  const EnvMap g = loadEnvironment(dir + "/grey.exr");
+  for (size_t i = 0; i < y.size(); ++i)
+    for (int k = 0; k < 3; ++k) REQUIRE(g.rgb[3 * i + k] == y[i]);
+  // A constant colour through Y, RY, BY (chroma subsampled 2×2, stored in half).
+  // The RGB → YC → RGB round trip in half precision: within 1%.
+  const double kYcRelTol = 1e-2;
+  {
+    std::vector<Imf::Rgba> px(size_t(w) * h, Imf::Rgba(0.25f, 0.5f, 1.0f, 1.0f));
+    Imf::RgbaOutputFile out((dir + "/yc.exr").c_str(), w, h, Imf::WRITE_YC);
+    out.setFrameBuffer(px.data(), 1, size_t(w));
+    out.writePixels(h);
+  }
+  const EnvMap c = loadEnvironment(dir + "/yc.exr");
+  const double want[3] = {0.25, 0.5, 1.0};
+  for (size_t i = 0; i < c.texelCount(); ++i)
+    for (int k = 0; k < 3; ++k) REQUIRE(std::abs(c.rgb[3 * i + k] - want[k]) < kYcRelTol * want[k]);
+}
+
 TEST_CASE("8-bit images use the exact sRGB EOTF, grey and alpha become RGB", "[env_load]") {
   const int h = 16, w = 32;
   const std::string dir = test::tempDir("env-srgb");
@@ -709,6 +734,31 @@ TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
       INFO(msg);
       CHECK(msg.rfind(p + ": cannot decode", 0) == 0);
     }
+  }
+  SECTION("truncated HDR, PNG and JPG; an HDR run of length 0 (stb_image would loop forever)") {
+    std::vector<float> hdr(3 * 64 * 32);
+    std::vector<unsigned char> ldr(3 * 64 * 32);
+    for (size_t i = 0; i < hdr.size(); ++i) {
+      hdr[i] = float(1.0 + std::sin(0.37 * double(i)));
+      ldr[i] = (unsigned char)(i * 31 % 251);
+    }
+    REQUIRE(stbi_write_hdr((dir + "/t.hdr").c_str(), 64, 32, 3, hdr.data()) != 0);
+    REQUIRE(stbi_write_png((dir + "/t.png").c_str(), 64, 32, 3, ldr.data(), 3 * 64) != 0);
+    REQUIRE(stbi_write_jpg((dir + "/t.jpg").c_str(), 64, 32, 3, ldr.data(), 90) != 0);
+    for (const char* name : {"t.hdr", "t.png", "t.jpg"}) {
+      const std::string p = dir + "/" + name;
+      const std::string bytes = readBytes(p);
+      REQUIRE(load(p).width == 64);
+      writeBytes(p, bytes.substr(0, bytes.size() / 2));
+      const std::string msg = inputErrorOf([&] { load(p); });
+      INFO(msg);
+      CHECK(msg.rfind(p + ": cannot decode", 0) == 0);
+    }
+    const std::string p = dir + "/zero-run.hdr";
+    // One 8-pixel RLE scanline (2, 2, width 0x0008) whose first count is 0.
+    writeBytes(p, std::string("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 8\n") +
+                      std::string{'\x02', '\x02', '\x00', '\x08', '\x00'} + std::string(40, '\x81'));
+    CHECK(inputErrorOf([&] { load(p, "latlong"); }).find("a run of length 0") != std::string::npos);
   }
   SECTION("faces: missing, different sizes, not square") {
     const std::string d = dir + "/faces";

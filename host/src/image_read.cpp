@@ -16,6 +16,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -114,6 +115,65 @@ Image readOpenExr(const std::string& path) {
   throw InputError(path, "no R, G, B or Y channel (channels: " + (names.empty() ? "none" : names) + ")");
 }
 
+// stb_image's Radiance decoder loops forever on a run-length count of 0, which is
+// what it reads past the end of a truncated file (and what a corrupt one may hold).
+// This walks the scanline structure the way stb_image's stbi__hdr_load does, without
+// decoding, and returns why the data cannot be decoded ("" when stb can be trusted
+// with it, including the headers stb rejects by itself).
+std::string radianceDataProblem(const std::vector<unsigned char>& b) {
+  size_t pos = 0;
+  auto line = [&](std::string& out) {
+    out.clear();
+    while (pos < b.size() && b[pos] != '\n') out += char(b[pos++]);
+    if (pos >= b.size()) return false;
+    ++pos;
+    return true;
+  };
+  std::string tok;
+  if (!line(tok)) return "";  // no identifier line: stb reports it
+  do {
+    if (!line(tok)) return "";  // header never ends: stb reports it
+  } while (!tok.empty());
+  if (!line(tok) || tok.compare(0, 3, "-Y ") != 0) return "";
+  char* end = nullptr;
+  const long height = std::strtol(tok.c_str() + 3, &end, 10);
+  while (*end == ' ') ++end;
+  if (std::strncmp(end, "+X ", 3) != 0) return "";
+  const long width = std::strtol(end + 3, nullptr, 10);
+  if (width <= 0 || height <= 0 || width > (1 << 24) || height > (1 << 24)) return "";
+  const size_t flatBytes = 4 * size_t(width) * size_t(height);
+  const std::string truncated = "truncated Radiance HDR pixel data";
+  if (width < 8 || width >= 32768) return b.size() - pos < flatBytes ? truncated : "";
+  for (long j = 0; j < height; ++j) {
+    if (b.size() - pos < 4) return truncated;
+    if (b[pos] != 2 || b[pos + 1] != 2 || (b[pos + 2] & 0x80)) {
+      // stb then reads the whole image flat from here.
+      return b.size() - pos < flatBytes ? truncated : "";
+    }
+    if (((size_t(b[pos + 2]) << 8) | b[pos + 3]) != size_t(width)) return "";  // stb reports it
+    pos += 4;
+    for (int k = 0; k < 4; ++k) {
+      long i = 0;
+      while (i < width) {
+        if (pos >= b.size()) return truncated;
+        unsigned count = b[pos++];
+        if (count > 128) {
+          if (pos >= b.size()) return truncated;
+          ++pos;
+          count -= 128;
+        } else {
+          if (count == 0) return "bad RLE data in HDR (a run of length 0)";
+          if (b.size() - pos < count) return truncated;
+          pos += count;
+        }
+        if (long(count) > width - i) return "";  // stb reports "bad RLE data"
+        i += long(count);
+      }
+    }
+  }
+  return "";
+}
+
 std::string stbReason() {
   const char* r = stbi_failure_reason();
   return r ? r : "unknown error";
@@ -133,6 +193,8 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
   // Ask stb for 3 channels: it replicates grey and drops alpha.
   if (stbi_is_hdr_from_memory(buf, len)) {
     img.format = "Radiance HDR";
+    const std::string problem = radianceDataProblem(bytes);
+    if (!problem.empty()) throw InputError(path, "cannot decode Radiance HDR image: " + problem);
     std::unique_ptr<float, StbFree> px(stbi_loadf_from_memory(buf, len, &w, &h, &channelsInFile, 3));
     if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stbReason());
     checkSize(path, w, h);

@@ -42,7 +42,8 @@ struct EnvMap {
   double yawDegrees = 0.0;
   std::string source;                    // the path it was loaded from (for messages)
   std::vector<std::string> inputFiles;   // every file read (for hashes in sidecars)
-  std::string layoutName;                // "faces", "cross", "latlong", "openexr-cube", "games202", ...
+  std::string layoutName;                // "faces", "cross", "vertical-cross", "strip", "latlong",
+                                         // "openexr-cube" or "games202"
   long long clampedTexels = 0;           // non-finite/negative texels replaced by 0 (clamp option)
 
   size_t texelCount() const { return layout == EnvLayout::Cube ? 6 * size_t(width) * width : size_t(width) * height; }
