@@ -105,6 +105,7 @@ int runEnv(const CommandLine& cl) {
   meta["device"] = rt.deviceLabel();
   meta["timings_seconds"] = {{"load", loadSeconds},
                              {"kernel_build", rt.buildSeconds()},
+                             {"upload", r.uploadSeconds},
                              {"kernel", r.kernelSeconds},
                              {"project", projectSeconds},
                              {"total", secondsSince(t0)}};
