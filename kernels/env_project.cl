@@ -148,6 +148,57 @@ __kernel void project_cube(__global const float* rgb, __global const float* weig
   store_row(acc, partials + (size_t)rowId * 3 * NC);
 }
 
+// Cube faces by row moments. On a face, the unnormalised direction
+// h = u·axisU + v·axisV + axisN is linear in (u, v) and |h| = r = √(1+u²+v²).
+// r^l·Y_lm(h/r) is a homogeneous polynomial of degree l in h, so along a row
+// (v fixed) it is a polynomial P_lm(u) = Σ_{a≤l} p_lma(v) u^a. Hence
+//   L_lm(row) = Σ_c L_c Ω_c Y_lm(h_c/r_c) = Σ_{a≤l} p_lma(v) · M_la,
+//   M_la = Σ_c L_c Ω_c r_c^{−l} u_c^a,
+// and the kernel only accumulates the n(n+1)/2 moments M_la per channel (18 at
+// order 3 instead of 27 products with an evaluated basis); the host forms the
+// polynomial coefficients p_lma(v) in double and combines them (env_project.cpp).
+#define NM (SH_ORDER * (SH_ORDER + 1) / 2)
+__kernel void project_cube_moments(__global const float* rgb, __global const float* weights, int n,
+                                   __global float* partials) {
+  int rowId = get_global_id(0);
+  if (rowId >= 6 * n) return;
+  int face = rowId / n, row = rowId - face * n;
+  float v = 2.0f * (row + 0.5f) / n - 1.0f;
+  __global const float* wRow = weights + (size_t)min(row, n - 1 - row) * n;
+  __global const float* rgbRow = rgb + (size_t)rowId * n * 3;
+  SH_T acc[3 * NM];
+  for (int k = 0; k < 3 * NM; ++k) acc[k] = (SH_T)(0.0f);
+  float invN2 = 2.0f / n, v2p1 = 1.0f + v * v;
+  for (int c0 = 0; c0 < n; c0 += VW) {
+    SH_T r, g, b, w;
+    if (c0 + VW <= n) {
+      LOAD_RGB(rgbRow + 3 * c0, r, g, b);
+      w = VLOAD(wRow + c0);
+    } else {
+      load_tail(rgbRow, wRow, c0, n, &r, &g, &b, &w);
+    }
+    SH_T u = ((SH_T)(c0 + 0.5f) + LANES) * invN2 - 1.0f;
+    SH_T ir = rsqrt(u * u + v2p1);
+    SH_T basis[NM];
+    SH_T t = w;  // Ω r^{-l}
+    int k = 0;
+    for (int l = 0; l < SH_ORDER; ++l) {
+      SH_T q = t;
+      for (int a = 0; a <= l; ++a) {
+        basis[k++] = q;
+        q *= u;
+      }
+      t *= ir;
+    }
+    for (int m = 0; m < NM; ++m) {
+      acc[m] += basis[m] * r;
+      acc[NM + m] += basis[m] * g;
+      acc[2 * NM + m] += basis[m] * b;
+    }
+  }
+  for (int m = 0; m < 3 * NM; ++m) partials[(size_t)rowId * 3 * NM + m] = HSUM(acc[m]);
+}
+
 // One work-item per lat-long row.
 // rgb:       h rows × w columns × RGB
 // colSinCos: per column sin(λ + yaw), cos(λ + yaw)  (2w floats: all sines, then all cosines)

@@ -58,6 +58,77 @@ std::vector<float> cubeSolidAngleTable(int n) {
   return table;
 }
 
+// Highest order projected by row moments (the host's polynomial fit per row grows as n³).
+constexpr int kMomentsMaxOrder = 8;
+
+// Turns the per-row moments M_la (env_project.cl, project_cube_moments) into SH
+// coefficients: for each row, P_lm(u) = r^l Y_lm(h(u)/r) is a polynomial of degree l
+// in u; its coefficients come from interpolation at l+1 Chebyshev points (exact for a
+// polynomial, computed in double), and L_lm += Σ_a p_lma M_la. Rows are added in order.
+void addRowMoments(const EnvMap& env, int order, const std::vector<float>& bases, const std::vector<float>& sums,
+                   ShCoeffs& out) {
+  const int n = env.width, nc = order * order, nm = order * (order + 1) / 2;
+  // Chebyshev points and, per degree l, the inverse Vandermonde matrix on the first l+1 of them.
+  std::vector<double> x(static_cast<size_t>(order));
+  for (int j = 0; j < order; ++j) x[size_t(j)] = std::cos(kPi * (j + 0.5) / order);
+  std::vector<std::vector<double>> vinv(static_cast<size_t>(order));
+  for (int l = 0; l < order; ++l) {
+    const int m = l + 1;
+    std::vector<double> a(size_t(m * m)), inv(size_t(m * m), 0.0);
+    for (int j = 0; j < m; ++j)
+      for (int k = 0; k < m; ++k) a[size_t(j * m + k)] = std::pow(x[size_t(j)], k);
+    for (int i = 0; i < m; ++i) inv[size_t(i * m + i)] = 1.0;
+    for (int c = 0; c < m; ++c) {  // Gauss–Jordan with partial pivoting
+      int piv = c;
+      for (int r = c + 1; r < m; ++r)
+        if (std::abs(a[size_t(r * m + c)]) > std::abs(a[size_t(piv * m + c)])) piv = r;
+      for (int k = 0; k < m; ++k) std::swap(a[size_t(c * m + k)], a[size_t(piv * m + k)]), std::swap(inv[size_t(c * m + k)], inv[size_t(piv * m + k)]);
+      const double p = a[size_t(c * m + c)];
+      for (int k = 0; k < m; ++k) a[size_t(c * m + k)] /= p, inv[size_t(c * m + k)] /= p;
+      for (int r = 0; r < m; ++r)
+        if (r != c) {
+          const double f = a[size_t(r * m + c)];
+          for (int k = 0; k < m; ++k) a[size_t(r * m + k)] -= f * a[size_t(c * m + k)], inv[size_t(r * m + k)] -= f * inv[size_t(c * m + k)];
+        }
+    }
+    vinv[size_t(l)] = inv;  // coefficient a of the fit = Σ_j inv[a][j] · value(x_j)
+  }
+  std::vector<double> y(static_cast<size_t>(nc)), values(size_t(order) * size_t(nc)), p(static_cast<size_t>(order));
+  for (int face = 0; face < 6; ++face) {
+    const float* b = bases.data() + 9 * face;
+    for (int row = 0; row < n; ++row) {
+      const double v = 2.0 * (row + 0.5) / n - 1.0;
+      // Ỹ_lm(h) = |h|^l Y_lm(h/|h|) at h(x_j) = x_j U + v V + N.
+      for (int j = 0; j < order; ++j) {
+        double h[3];
+        for (int k = 0; k < 3; ++k) h[k] = x[size_t(j)] * b[k] + v * b[3 + k] + b[6 + k];
+        const double len = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+        shEval(order, h[0] / len, h[1] / len, h[2] / len, y.data());
+        double scale = 1.0;
+        for (int l = 0; l < order; ++l, scale *= len)
+          for (int mm = -l; mm <= l; ++mm) values[size_t(j) * nc + size_t(shIndex(l, mm))] = scale * y[size_t(shIndex(l, mm))];
+      }
+      const float* mom = sums.data() + (size_t(face) * n + size_t(row)) * 3 * size_t(nm);
+      for (int l = 0; l < order; ++l) {
+        const int m = l + 1, first = l * (l + 1) / 2;  // moments M_l0..M_ll start at index first
+        for (int mm = -l; mm <= l; ++mm) {
+          const int i = shIndex(l, mm);
+          for (int a = 0; a < m; ++a) {
+            double s = 0;
+            for (int j = 0; j < m; ++j) s += vinv[size_t(l)][size_t(a * m + j)] * values[size_t(j) * nc + size_t(i)];
+            p[size_t(a)] = s;
+          }
+          for (int ch = 0; ch < 3; ++ch) {
+            double acc = 0;
+            for (int a = 0; a < m; ++a) acc += p[size_t(a)] * double(mom[size_t(ch * nm + first + a)]);
+            out.rgb[size_t(i)][size_t(ch)] += acc;
+          }
+        }
+      }
+    }
+  }
+}
+
 double eventSeconds(const cl::Event& e) {
   const auto t0 = e.getProfilingInfo<CL_PROFILING_COMMAND_START>();
   const auto t1 = e.getProfilingInfo<CL_PROFILING_COMMAND_END>();
@@ -73,7 +144,12 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   const int vw = vectorWidth(rt, order);
   const std::string buildOptions = "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vw);
   const bool cube = env.layout == EnvLayout::Cube;
-  cl::Kernel kernel = rt.kernel("env_project.cl", cube ? "project_cube" : "project_latlong", buildOptions);
+  // Cube faces on vector devices go by row moments (fewer accumulators, no basis per
+  // texel), with the polynomial coefficients formed on the host; see env_project.cl.
+  const bool moments = cube && vw > 1 && order <= kMomentsMaxOrder;
+  cl::Kernel kernel = rt.kernel("env_project.cl",
+                                moments ? "project_cube_moments" : cube ? "project_cube" : "project_latlong", buildOptions);
+  const int perRow = moments ? 3 * order * (order + 1) / 2 : 3 * nc;
 
   EnvProjectResult result;
   result.texels = (long long)env.texelCount();
@@ -83,7 +159,7 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   cl::Buffer rgb(rt.context(), CL_MEM_READ_ONLY | hostFlags, env.rgb.size() * sizeof(float),
                  const_cast<float*>(env.rgb.data()));
   const size_t rows = cube ? 6 * size_t(env.width) : size_t(env.height);
-  cl::Buffer partials(rt.context(), CL_MEM_WRITE_ONLY, rows * 3 * size_t(nc) * sizeof(float));
+  cl::Buffer partials(rt.context(), CL_MEM_WRITE_ONLY, rows * size_t(perRow) * sizeof(float));
   const double yaw = env.yawDegrees * kPi / 180.0;
   std::vector<float> table1, table2;
   cl::Buffer buf1, buf2;
@@ -99,11 +175,12 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
       }
     buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
     buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
-    kernel.setArg(0, rgb);
-    kernel.setArg(1, buf1);
-    kernel.setArg(2, buf2);
-    kernel.setArg(3, n);
-    kernel.setArg(4, partials);
+    int arg = 0;
+    kernel.setArg(arg++, rgb);
+    kernel.setArg(arg++, buf1);
+    if (!moments) kernel.setArg(arg++, buf2);
+    kernel.setArg(arg++, n);
+    kernel.setArg(arg++, partials);
   } else {
     const int w = env.width, h = env.height;
     table1.resize(2 * size_t(w));
@@ -137,17 +214,21 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   const size_t global = (rows + local - 1) / local * local;
   cl::Event done;
   rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local), nullptr, &done);
-  std::vector<float> sums(rows * 3 * size_t(nc));
+  std::vector<float> sums(rows * size_t(perRow));
   rt.queue().enqueueReadBuffer(partials, CL_TRUE, 0, sums.size() * sizeof(float), sums.data());
   result.kernelSeconds = eventSeconds(done);
 
   ShCoeffs radiance;
   radiance.order = order;
   radiance.rgb.assign(size_t(nc), Rgb{0, 0, 0});
-  for (size_t r = 0; r < rows; ++r) {
-    const float* s = sums.data() + r * 3 * size_t(nc);
-    for (int ch = 0; ch < 3; ++ch)
-      for (int k = 0; k < nc; ++k) radiance.rgb[size_t(k)][size_t(ch)] += double(s[ch * nc + k]);
+  if (moments) {
+    addRowMoments(env, order, table2, sums, radiance);
+  } else {
+    for (size_t r = 0; r < rows; ++r) {
+      const float* s = sums.data() + r * 3 * size_t(nc);
+      for (int ch = 0; ch < 3; ++ch)
+        for (int k = 0; k < nc; ++k) radiance.rgb[size_t(k)][size_t(ch)] += double(s[ch * nc + k]);
+    }
   }
   for (const auto& c : radiance.rgb)
     for (double v : c)
