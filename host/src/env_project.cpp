@@ -141,7 +141,8 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   checkOrder(options.order);
   if (env.texelCount() == 0) throw InputError(env.source, "empty environment");
   const int order = options.order, nc = order * order;
-  const int vw = vectorWidth(rt, order);
+  const int vw = options.vectorWidth ? options.vectorWidth : vectorWidth(rt, order);
+  if (vw != 1 && vw != 8 && vw != 16) throw UsageError("vector width", "must be 1, 8 or 16");
   const std::string buildOptions = "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vw);
   const bool cube = env.layout == EnvLayout::Cube;
   // Cube faces on vector devices go by row moments (fewer accumulators, no basis per
@@ -210,7 +211,7 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
 
   // One row per work-item; on CPUs small work-groups (4 rows) keep the split over
   // PoCL's threads even while amortising the per-group launch cost.
-  const size_t local = rt.info().type == "cpu" ? 4 : 64;
+  const size_t local = options.rowsPerGroup > 0 ? size_t(options.rowsPerGroup) : rt.info().type == "cpu" ? 4 : 64;
   const size_t global = (rows + local - 1) / local * local;
   cl::Event done;
   rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local), nullptr, &done);

@@ -3,6 +3,7 @@
 #include <ImfEnvmapAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 #include <ImfStandardAttributes.h>
 #include <ImfStringAttribute.h>
@@ -54,6 +55,42 @@ void writeExr(const std::string& path, int width, int height, const std::vector<
     throw OutputError(path, std::string("OpenEXR write failed: ") + e.what());
   }
   out.commit();
+}
+
+const std::vector<float>* ExrImage::channel(const std::string& name) const {
+  for (size_t i = 0; i < channelNames.size(); ++i)
+    if (channelNames[i] == name) return &channels[i];
+  return nullptr;
+}
+
+ExrImage readExr(const std::string& path) {
+  readFile(path);  // a clear error for missing files and directories
+  ExrImage out;
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    out.width = dw.max.x - dw.min.x + 1;
+    out.height = dw.max.y - dw.min.y + 1;
+    if (out.width <= 0 || out.height <= 0 || double(out.width) * out.height > 1e9)
+      throw InputError(path, "unreasonable data window");
+    Imf::FrameBuffer fb;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
+      out.channelNames.push_back(it.name());
+      out.channels.emplace_back(size_t(out.width) * size_t(out.height));
+    }
+    for (size_t i = 0; i < out.channels.size(); ++i) {
+      char* base = reinterpret_cast<char*>(out.channels[i].data()) -
+                   (size_t(dw.min.y) * size_t(out.width) + size_t(dw.min.x)) * sizeof(float);
+      fb.insert(out.channelNames[i], Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * size_t(out.width)));
+    }
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path, std::string("cannot read OpenEXR: ") + e.what());
+  }
+  return out;
 }
 
 }  // namespace prtbake

@@ -36,6 +36,9 @@ struct EnvProjectOptions {
   int order = 3;                                    // 1..kMaxShOrder
   ShQuantity quantity = ShQuantity::Radiance;
   ShWindow window = ShWindow::None;
+  // Tuning knobs (0 = automatic): lanes per work-item (1, 8 or 16) and rows per work-group.
+  int vectorWidth = 0;
+  int rowsPerGroup = 0;
 };
 
 struct EnvProjectResult {

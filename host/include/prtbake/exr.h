@@ -22,4 +22,15 @@ struct ExrWriteOptions {
 void writeExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
               const ExrWriteOptions& options = {});
 
+struct ExrImage {
+  int width = 0, height = 0;
+  std::vector<std::string> channelNames;     // in the file's (alphabetical) order
+  std::vector<std::vector<float>> channels;  // one plane per name, row 0 first
+  const std::vector<float>* channel(const std::string& name) const;
+};
+
+// Reads every channel of an OpenEXR file (level 0, data window) as float planes.
+// Throws InputError naming the file.
+ExrImage readExr(const std::string& path);
+
 }  // namespace prtbake
