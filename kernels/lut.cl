@@ -1,0 +1,201 @@
+// lut.cl: split-sum BRDF lookup tables (DESIGN.md "BRDF LUT"), one work-item per point.
+//
+// Build options (each variant is its own cached program):
+//   -DLUT_NDF=0|1      GGX | Beckmann
+//   -DLUT_VIS=0|1|2    height-correlated Smith | separable Smith | Schlick-GGX (k = α/2)
+//   -DLUT_CLOTH=0|1    also the Charlie/Ashikhmin cloth table
+//   -DLUT_DIRS=0|1|2   disk points from the host table | precise sin/cos | native_sin/cos
+//   -DLUT_NATIVE=0|1   precise | native sqrt, rsqrt, divide, exp
+#ifndef LUT_NDF
+#define LUT_NDF 0
+#endif
+#ifndef LUT_VIS
+#define LUT_VIS 0
+#endif
+#ifndef LUT_CLOTH
+#define LUT_CLOTH 0
+#endif
+#ifndef LUT_DIRS
+#define LUT_DIRS 0
+#endif
+#ifndef LUT_NATIVE
+#define LUT_NATIVE 0
+#endif
+
+#if LUT_NATIVE
+#define MF_SQRT native_sqrt
+#define MF_RSQRT native_rsqrt
+#define MF_DIV(a, b) native_divide((a), (b))
+#define MF_EXP native_exp
+#endif
+
+#include "lut_sampling.clh"
+#include "microfacet.clh"
+
+#define LUT_TWO_PI 6.28318530717958648f
+
+inline float lut_hsum16(float16 v) {
+  float8 a = v.lo + v.hi;
+  float4 b = a.lo + a.hi;
+  float2 c = b.lo + b.hi;
+  return c.x + c.y;
+}
+
+// Standard error of the mean of n samples from their sum and sum of squares.
+inline float lut_stderr(float sum, float sum2, float invN) {
+  float m = sum * invN;
+  return sqrt(fmax(sum2 * invN - m * m, 0.0f) * invN);
+}
+
+// ---------------------------------------------------------------------------
+// Specular (A, B). View V = (√(1 − μ²), 0, μ), normal N = +z.
+//
+//   A + B = ∫ f_r(V, L) cos θ_l dω_l,   f_r = D(H) G2(V, L) F / (4 μ ν),   ν = N·L.
+//
+// Half vectors are drawn from the GGX distribution of visible normals (Heitz 2018,
+// "Sampling the GGX Distribution of Visible Normals"):
+//   p(H) = G1(V) max(0, V·H) D(H) / μ,   L = 2(V·H)H − V,   p(L) = p(H) / (4 V·H),
+// so f_r cos θ_l / p(L) = [D G2 F / (4μ)] · [4μ / (G1(V) D)] = F · G2(V, L)/G1(V).
+// Unlike NDF sampling (weight G2 (V·H)/((N·H) μ), unbounded as μ → 0) this weight
+// lies in [0, 1] for GGX, so grazing columns converge like the others.
+//
+// Beckmann: the same GGX sampler (same α) is the proposal; the weight gains
+// D_B/D_GGX = e^{−x}(1 + x)², x = tan²θ_h/α², bounded by 4/e, and G1 is GGX's:
+//   w = [D_B/D_GGX] · G2_B(V, L) / G1_GGX(V) · F,   G1_GGX(V) = 2μ/(μ + a_V).
+// The heavier GGX tails make this a defensive importance sampler for Beckmann.
+//
+// G2/G1_GGX(V), written so that μ = 0 is finite (a_x = a(x), see microfacet.clh):
+//   GGX correlated     ν(μ + a_V) / (ν a_V + μ a_L)
+//   GGX separable      G1_GGX(ν) = 2ν / (ν + a_L)
+//   Beckmann corr.     (μ + a_V) / (2 (μ(1 + Λ_V) + μ Λ_L))
+//   Beckmann separ.    (μ + a_V) / (2 μ(1 + Λ_V) (1 + Λ_L))
+//   Schlick-GGX        (μ + a_V) / (2 (μ(1 − k) + k)) · G1_S(ν)
+//
+// Estimator over n Hammersley points, w_k = 0 where ν ≤ 0 (L below the horizon):
+//   A = (1/n) Σ_k (1 − F_c,k) w_k,   B = (1/n) Σ_k F_c,k w_k,   F_c = (1 − V·H)^5.
+// α = 0 is a mirror: H = N, w = 1, A = 1 − (1 − μ)^5, B = (1 − μ)^5 exactly.
+//
+// Cloth C = ∫ D_C(H) V_A(V, L) ν dω_l with D_C = (2 + 1/α) sin^{1/α}θ_h / (2π)
+// (Estevez–Kulla 2017) and V_A = 1/(4(ν + μ − νμ)) (Neubelt 2013). H is drawn with
+// p(H) = D_C(H) cos θ_h: sin θ_h = u1^{α/(2α+1)}, φ = 2π u2; p(L) = p(H)/(4 V·H):
+//   C = (1/n) Σ_k ν_k (V·H_k) / ((ν_k + μ − ν_k μ) cos θ_h,k)   (0 where ν ≤ 0).
+// ---------------------------------------------------------------------------
+
+// count:  number of points
+// points: count × (μ, α); μ in [0, 1] (clamped), α ≥ 0 the NDF width
+// nPad:   samples rounded up to a multiple of LUT_SIMD (the table row length)
+// invN:   1 / samples
+// table:  LUT_TAB_ROWS × nPad floats (lut_sampling.clh)
+// out:    count × LUT_OUT_FLOAT4S float4: (A, B, C, 0), (σ_A, σ_B, σ_C, 0)
+__kernel void lut_eval(int count, __global const float2* points, int nPad, float invN,
+                       __global const float* table, __global float4* out) {
+  const int gid = get_global_id(0);
+  if (gid >= count) return;
+  const float mu = clamp(points[gid].x, 0.0f, 1.0f);
+  const float alpha = fmax(points[gid].y, 0.0f);
+  const float sv = sqrt(fmax(1.0f - mu * mu, 0.0f));
+  float4 mean = (float4)(0.0f), err = (float4)(0.0f);
+
+  if (alpha <= 0.0f) {
+    const float m = 1.0f - mu, m2 = m * m, fc = m2 * m2 * m;
+    mean.x = 1.0f - fc;
+    mean.y = fc;
+  } else {
+    // Per point: the stretched view direction of the VNDF sampler and its warp.
+    const float vsx = alpha * sv, vsz = mu, vlen = rsqrt(vsx * vsx + vsz * vsz);
+    const float vhx = vsx * vlen, vhz = vsz * vlen;
+    const float s = 0.5f * (1.0f + vhz), oms = 1.0f - s;
+    const float alpha2 = alpha * alpha;
+    const float aV = mf_ggx_root(mu, alpha2);
+#if LUT_VIS == 2
+    const float kS = 0.5f * alpha;
+    const float visV = (mu + aV) / (2.0f * (mu * (1.0f - kS) + kS));
+#elif LUT_NDF == 1
+    const float qV = mf_beckmann_mu_one_plus_lambda(mu, alpha);
+    const float visV = (mu + aV) / (2.0f * qV);
+#endif
+    float16 sumW = 0.0f, sumB = 0.0f, sumA2 = 0.0f, sumB2 = 0.0f;
+    for (int k = 0; k < nPad; k += LUT_SIMD) {
+#if LUT_DIRS == 0
+      const float16 t1 = vload16(0, table + LUT_TAB_T1 * nPad + k);
+      const float16 t2r = vload16(0, table + LUT_TAB_T2 * nPad + k);
+      const float16 c = vload16(0, table + LUT_TAB_C * nPad + k);
+#else
+      const float16 r = sqrt(vload16(0, table + LUT_TAB_U1 * nPad + k));
+      const float16 phi = LUT_TWO_PI * vload16(0, table + LUT_TAB_U2 * nPad + k);
+#if LUT_DIRS == 1
+      const float16 t1 = r * cos(phi), t2r = r * sin(phi);
+#else
+      const float16 t1 = r * native_cos(phi), t2r = r * native_sin(phi);
+#endif
+      const float16 c = sqrt(fmax(1.0f - t1 * t1, 0.0f));
+#endif
+      const float16 mask = vload16(0, table + LUT_TAB_MASK * nPad + k);
+      // Heitz 2018 in the frame T1 = (0, 1, 0), T2 = (−v_z, 0, v_x) of the stretched view.
+      const float16 t2 = oms * c + s * t2r;
+      const float16 nw = MF_SQRT(fmax(1.0f - t1 * t1 - t2 * t2, 0.0f));
+      const float16 nx = nw * vhx - t2 * vhz;
+      const float16 nz = fmax(t2 * vhx + nw * vhz, 0.0f);
+      const float16 hxs = alpha * nx, hys = alpha * t1;
+      const float16 inv = MF_RSQRT(hxs * hxs + hys * hys + nz * nz);
+      const float16 hz = nz * inv;
+      const float16 vdoth = sv * hxs * inv + mu * hz;
+      const float16 nl = 2.0f * vdoth * hz - mu;
+      const float16 fc = mf_schlick_fc16(vdoth);
+#if LUT_NDF == 0 && LUT_VIS == 0
+      const float16 aL = mf_ggx_root16(nl, alpha2);
+      float16 g = MF_DIV(nl * (mu + aV), nl * aV + mu * aL);
+#elif LUT_NDF == 0 && LUT_VIS == 1
+      const float16 aL = mf_ggx_root16(nl, alpha2);
+      float16 g = MF_DIV(2.0f * nl, nl + aL);
+#elif LUT_VIS == 2
+      float16 g = visV * mf_schlick_g1_16(nl, kS);
+#elif LUT_VIS == 0
+      float16 g = MF_DIV(mu + aV, 2.0f * (qV + mu * mf_beckmann_lambda16(nl, alpha)));
+#else
+      float16 g = MF_DIV(visV, 1.0f + mf_beckmann_lambda16(nl, alpha));
+#endif
+#if LUT_NDF == 1
+      g *= mf_beckmann_over_ggx16(nx, t1, nz);
+#endif
+      const float16 w = select((float16)(0.0f), g, nl > 0.0f) * mask;
+      const float16 wb = w * fc, wa = w - wb;
+      sumW += w;
+      sumB += wb;
+      sumA2 += wa * wa;
+      sumB2 += wb * wb;
+    }
+    const float sw = lut_hsum16(sumW), sb = lut_hsum16(sumB);
+    mean.x = (sw - sb) * invN;
+    mean.y = sb * invN;
+    err.x = lut_stderr(sw - sb, lut_hsum16(sumA2), invN);
+    err.y = lut_stderr(sb, lut_hsum16(sumB2), invN);
+  }
+
+#if LUT_CLOTH
+  {
+    const float ac = fmax(alpha, 0.007921f);  // kLutClothAlphaMin
+    const float e = ac / (2.0f * ac + 1.0f);
+    float16 sumC = 0.0f, sumC2 = 0.0f;
+    for (int k = 0; k < nPad; k += LUT_SIMD) {
+      const float16 logu1 = vload16(0, table + LUT_TAB_LOGU1 * nPad + k);
+      const float16 cphi = vload16(0, table + LUT_TAB_COSPHI * nPad + k);
+      const float16 mask = vload16(0, table + LUT_TAB_MASK * nPad + k);
+      const float16 sh = MF_EXP(e * logu1);
+      const float16 ch = MF_SQRT(fmax(1.0f - sh * sh, 0.0f));
+      const float16 vdoth = sv * sh * cphi + mu * ch;
+      const float16 nl = 2.0f * vdoth * ch - mu;
+      const float16 g = MF_DIV(nl * vdoth, (nl + mu - nl * mu) * ch);
+      const float16 w = select((float16)(0.0f), g, nl > 0.0f) * mask;
+      sumC += w;
+      sumC2 += w * w;
+    }
+    const float sc = lut_hsum16(sumC);
+    mean.z = sc * invN;
+    err.z = lut_stderr(sc, lut_hsum16(sumC2), invN);
+  }
+#endif
+
+  out[LUT_OUT_FLOAT4S * gid] = mean;
+  out[LUT_OUT_FLOAT4S * gid + 1] = err;
+}
