@@ -76,9 +76,18 @@ inline float lut_stderr(float sum, float sum2, float invN) {
 // α = 0 is a mirror: H = N, w = 1, A = 1 − (1 − μ)^5, B = (1 − μ)^5 exactly.
 //
 // Cloth C = ∫ D_C(H) V_A(V, L) ν dω_l with D_C = (2 + 1/α) sin^{1/α}θ_h / (2π)
-// (Estevez–Kulla 2017) and V_A = 1/(4(ν + μ − νμ)) (Neubelt 2013). H is drawn with
-// p(H) = D_C(H) cos θ_h: sin θ_h = u1^{α/(2α+1)}, φ = 2π u2; p(L) = p(H)/(4 V·H):
-//   C = (1/n) Σ_k ν_k (V·H_k) / ((ν_k + μ − ν_k μ) cos θ_h,k)   (0 where ν ≤ 0).
+// (Estevez–Kulla 2017) and V_A = 1/(4(ν + μ − νμ)) (Neubelt 2013). Over the half vector,
+//   C = ∫∫ D_C(θ) g sinθ dθ dφ,   g = ν (V·H)/(ν + μ − νμ).
+// D_C peaks at the horizon, where sampling p(H) = D_C cosθ_h alone starves (its weight
+// g/cosθ_h is unbounded at grazing view). So θ comes from a three-way mixture, in dθ:
+//   p(θ) = β0·2/π                                  θ uniform on [0, π/2]
+//        + β1·λ e^{−λ cosθ} sinθ / (1 − e^{−λ})     cosθ exponential, λ = 1/√α: follows the
+//                                                   horizon peak sin^{1/α}θ ≈ e^{−cos²θ/(2α)}
+//        + β2·K sin^{1/α+1}θ cosθ,  K = 2 + 1/α     D_C cosθ (sinθ = u'^{1/K})
+// with φ = 2π u2; u1 picks the branch and is rescaled to u' within it. Each sample is
+// weighted by the whole mixture density (one-sample balance heuristic), f/p with
+// f(θ, φ) = K sin^{1/α+1}θ g/(2π) and p(θ, φ) = p(θ)/(2π):
+//   C = (1/n) Σ_k K sin^{1/α+1}θ_k g_k / p(θ_k)   (0 where ν ≤ 0).
 // ---------------------------------------------------------------------------
 
 // count:  number of points
@@ -175,18 +184,29 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
 #if LUT_CLOTH
   {
     const float ac = fmax(alpha, 0.007921f);  // kLutClothAlphaMin
-    const float e = ac / (2.0f * ac + 1.0f);
+    const float invA = 1.0f / ac, kC = 2.0f + invA, e = 1.0f / kC;
+    const float lam = rsqrt(ac), c0 = -expm1(-lam);  // exponential branch: p(c) = λ e^{−λc}/c0
+    const float b0 = LUT_CLOTH_BETA0 * 0.63661977236758134f, b1 = LUT_CLOTH_BETA1 * lam / c0;
     float16 sumC = 0.0f, sumC2 = 0.0f;
     for (int k = 0; k < nPad; k += LUT_SIMD) {
-      const float16 logu1 = vload16(0, table + LUT_TAB_LOGU1 * nPad + k);
+      const float16 br = vload16(0, table + LUT_TAB_CL_BRANCH * nPad + k);
+      const float16 ta = vload16(0, table + LUT_TAB_CL_A * nPad + k);
+      const float16 tb = vload16(0, table + LUT_TAB_CL_B * nPad + k);
       const float16 cphi = vload16(0, table + LUT_TAB_COSPHI * nPad + k);
       const float16 mask = vload16(0, table + LUT_TAB_MASK * nPad + k);
-      const float16 sh = MF_EXP(e * logu1);
-      const float16 ch = MF_SQRT(fmax(1.0f - sh * sh, 0.0f));
+      const int16 isU = br < 0.5f, isE = br > 0.5f && br < 1.5f;
+      // Branch 1: cos θ = −ln(1 − u' c0)/λ.  Branch 2: ln sin θ = ln u'/K.
+      const float16 cE = -log1p(-fmax(ta, 0.0f) * c0) / lam;
+      const float16 lnS = select(select(e * ta, 0.5f * log1p(-fmin(cE * cE, 1.0f - 1e-7f)), isE), ta, isU);
+      const float16 sh = MF_EXP(lnS);
+      const float16 ch = select(select(MF_SQRT(fmax(-expm1(2.0f * lnS), 0.0f)), cE, isE), tb, isU);
+      const float16 p = MF_EXP((invA + 1.0f) * lnS);  // sin^{1/α + 1} θ_h
       const float16 vdoth = sv * sh * cphi + mu * ch;
       const float16 nl = 2.0f * vdoth * ch - mu;
-      const float16 g = MF_DIV(nl * vdoth, (nl + mu - nl * mu) * ch);
-      const float16 w = select((float16)(0.0f), g, nl > 0.0f) * mask;
+      const float16 g = MF_DIV(nl * vdoth, nl + mu - nl * mu);
+      const float16 kp = kC * p;
+      const float16 pdf = b0 + b1 * MF_EXP(-lam * ch) * sh + LUT_CLOTH_BETA2 * kp * ch;
+      const float16 w = select((float16)(0.0f), MF_DIV(kp * g, pdf), nl > 0.0f) * mask;
       sumC += w;
       sumC2 += w * w;
     }

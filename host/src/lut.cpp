@@ -45,7 +45,20 @@ std::vector<float> sampleTable(int samples, int nPad) {
     at(LUT_TAB_MASK, k) = k < samples ? 1.0f : 0.0f;
     at(LUT_TAB_U1, k) = float(u1);
     at(LUT_TAB_U2, k) = float(u2);
-    at(LUT_TAB_LOGU1, k) = float(std::log(u1));
+    // Cloth mixture (lut.cl): branch by u1, u' = u1 rescaled within its branch.
+    const double b0 = LUT_CLOTH_BETA0, b1 = LUT_CLOTH_BETA1;
+    if (u1 < b0) {
+      const double th = kPi / 2 * u1 / b0;
+      at(LUT_TAB_CL_BRANCH, k) = 0.0f;
+      at(LUT_TAB_CL_A, k) = float(std::log(std::sin(th)));
+      at(LUT_TAB_CL_B, k) = float(std::cos(th));
+    } else if (u1 < b0 + b1) {
+      at(LUT_TAB_CL_BRANCH, k) = 1.0f;
+      at(LUT_TAB_CL_A, k) = float((u1 - b0) / b1);
+    } else {
+      at(LUT_TAB_CL_BRANCH, k) = 2.0f;
+      at(LUT_TAB_CL_A, k) = float(std::log((u1 - b0 - b1) / (1 - b0 - b1)));
+    }
     at(LUT_TAB_COSPHI, k) = float(cphi);
     at(LUT_TAB_SINPHI, k) = float(sphi);
   }
