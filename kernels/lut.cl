@@ -27,12 +27,16 @@
 #define MF_RSQRT native_rsqrt
 #define MF_DIV(a, b) native_divide((a), (b))
 #define MF_EXP native_exp
+#define MF_COS native_cos
+#else
+#define MF_COS cos
 #endif
 
 #include "lut_sampling.clh"
 #include "microfacet.clh"
 
 #define LUT_TWO_PI 6.28318530717958648f
+#define LUT_INV_PI 0.31830988618379067f
 
 inline float lut_hsum16(float16 v) {
   float8 a = v.lo + v.hi;
@@ -84,10 +88,12 @@ inline float lut_stderr(float sum, float sum2, float invN) {
 //        + β1·λ e^{−λ cosθ} sinθ / (1 − e^{−λ})     cosθ exponential, λ = 1/√α: follows the
 //                                                   horizon peak sin^{1/α}θ ≈ e^{−cos²θ/(2α)}
 //        + β2·K sin^{1/α+1}θ cosθ,  K = 2 + 1/α     D_C cosθ (sinθ = u'^{1/K})
-// with φ = 2π u2; u1 picks the branch and is rescaled to u' within it. Each sample is
-// weighted by the whole mixture density (one-sample balance heuristic), f/p with
-// f(θ, φ) = K sin^{1/α+1}θ g/(2π) and p(θ, φ) = p(θ)/(2π):
-//   C = (1/n) Σ_k K sin^{1/α+1}θ_k g_k / p(θ_k)   (0 where ν ≤ 0).
+// u1 picks the branch and is rescaled to u' within it. φ is uniform on the arc where
+// ν > 0, φ = u2 φ_max(θ) with cos φ_max = clamp(−μ cos 2θ/(√(1 − μ²) sin 2θ), −1, 1) (the
+// integrand is even in φ; see host/src/lut_reference.cpp), p(φ | θ) = 1/φ_max on [0, φ_max],
+// doubled for the mirror arc. Each sample is weighted by the whole mixture density
+// (one-sample balance heuristic): with f(θ, φ) = K sin^{1/α+1}θ g/(2π),
+//   C = (1/n) Σ_k K sin^{1/α+1}θ_k g_k φ_max(θ_k) / (π p(θ_k))   (0 where ν ≤ 0).
 // ---------------------------------------------------------------------------
 
 // count:  number of points
@@ -192,7 +198,7 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
       const float16 br = vload16(0, table + LUT_TAB_CL_BRANCH * nPad + k);
       const float16 ta = vload16(0, table + LUT_TAB_CL_A * nPad + k);
       const float16 tb = vload16(0, table + LUT_TAB_CL_B * nPad + k);
-      const float16 cphi = vload16(0, table + LUT_TAB_COSPHI * nPad + k);
+      const float16 u2 = vload16(0, table + LUT_TAB_U2 * nPad + k);
       const float16 mask = vload16(0, table + LUT_TAB_MASK * nPad + k);
       const int16 isU = br < 0.5f, isE = br > 0.5f && br < 1.5f;
       // Branch 1: cos θ = −ln(1 − u' c0)/λ.  Branch 2: ln sin θ = ln u'/K.
@@ -201,12 +207,16 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
       const float16 sh = MF_EXP(lnS);
       const float16 ch = select(select(MF_SQRT(fmax(-expm1(2.0f * lnS), 0.0f)), cE, isE), tb, isU);
       const float16 p = MF_EXP((invA + 1.0f) * lnS);  // sin^{1/α + 1} θ_h
+      // φ uniform on the arc where ν > 0: cos φ > −μ cos 2θ/(√(1 − μ²) sin 2θ).
+      const float16 cBound = clamp(-mu * (ch * ch - sh * sh) / fmax(2.0f * sv * sh * ch, 1e-30f), -1.0f, 1.0f);
+      const float16 phiMax = acos(cBound);
+      const float16 cphi = MF_COS(u2 * phiMax);
       const float16 vdoth = sv * sh * cphi + mu * ch;
       const float16 nl = 2.0f * vdoth * ch - mu;
       const float16 g = MF_DIV(nl * vdoth, nl + mu - nl * mu);
       const float16 kp = kC * p;
       const float16 pdf = b0 + b1 * MF_EXP(-lam * ch) * sh + LUT_CLOTH_BETA2 * kp * ch;
-      const float16 w = select((float16)(0.0f), MF_DIV(kp * g, pdf), nl > 0.0f) * mask;
+      const float16 w = select((float16)(0.0f), MF_DIV(kp * g * phiMax * LUT_INV_PI, pdf), nl > 0.0f) * mask;
       sumC += w;
       sumC2 += w * w;
     }

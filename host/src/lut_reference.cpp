@@ -108,11 +108,11 @@ class Integrand {
     if (nl <= 0 || vdoth <= 0) return 0;
     double d;
     if (o_.ndf == LutNdf::Ggx) {
-      const double t = ct * ct * (a2_ - 1) + 1;
+      const double t = st * st + ct * ct * a2_;  // cos²θ(α² − 1) + 1 without cancellation
       d = a2_ / (kPi * t * t);
     } else {
       const double c2 = ct * ct;
-      d = std::exp(-(1 - c2) / (c2 * a2_)) / (kPi * a2_ * c2 * c2);
+      d = std::exp(-(st * st) / (c2 * a2_)) / (kPi * a2_ * c2 * c2);
     }
     double g;  // G2/μ
     if (o_.visibility == LutVisibility::SchlickGgx) {
