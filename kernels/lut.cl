@@ -63,19 +63,25 @@ inline float lut_stderr(float sum, float sum2, float invN) {
 // Unlike NDF sampling (weight G2 (V·H)/((N·H) μ), unbounded as μ → 0) this weight
 // lies in [0, 1] for GGX, so grazing columns converge like the others.
 //
-// Beckmann: the same GGX sampler (same α) is the proposal; the weight gains
-// D_B/D_GGX = e^{−x}(1 + x)², x = tan²θ_h/α², bounded by 4/e, and G1 is GGX's:
-//   w = [D_B/D_GGX] · G2_B(V, L) / G1_GGX(V) · F,   G1_GGX(V) = 2μ/(μ + a_V).
-// The heavier GGX tails make this a defensive importance sampler for Beckmann.
+// Beckmann: the same GGX sampler (same α) is the proposal, and the estimate is
+// self-normalised. With d = D_B/D_GGX = e^{−x}(1 + x)², x = tan²θ_h/α² (bounded by 4/e),
+// the Beckmann visible-normal density is p_B(H) = p(H) · d · G1_B(V)/G1_GGX(V), and it
+// integrates to 1, so E_p[d] = G1_GGX(V)/G1_B(V) and
+//   A = Σ_k d_k (1 − F_c,k) y_k / Σ_k d_k,   B = Σ_k d_k F_c,k y_k / Σ_k d_k,
+//   y = G2_B(V, L)/G1_B(V)  (0 where ν ≤ 0),
+// a weighted mean of y ∈ [0, 1] for the Smith forms: A + B ≤ 1 holds for every sample
+// count, where the plain ratio d·G2_B/G1_GGX(V) (up to 4/e · √π) could overshoot.
+// The GGX tails are heavier than Beckmann's, so d stays bounded (a defensive proposal).
 //
-// G2/G1_GGX(V), written so that μ = 0 is finite (a_x = a(x), see microfacet.clh):
-//   GGX correlated     ν(μ + a_V) / (ν a_V + μ a_L)
-//   GGX separable      G1_GGX(ν) = 2ν / (ν + a_L)
-//   Beckmann corr.     (μ + a_V) / (2 (μ(1 + Λ_V) + μ Λ_L))
-//   Beckmann separ.    (μ + a_V) / (2 μ(1 + Λ_V) (1 + Λ_L))
-//   Schlick-GGX        (μ + a_V) / (2 (μ(1 − k) + k)) · G1_S(ν)
+// The visibility ratios, written so that μ = 0 is finite (a_x = a(x), see microfacet.clh):
+//   GGX correlated     G2/G1(V) = ν(μ + a_V) / (ν a_V + μ a_L)
+//   GGX separable      G2/G1(V) = G1_GGX(ν) = 2ν / (ν + a_L)
+//   GGX Schlick        G2_S/G1(V) = (μ + a_V) / (2 (μ(1 − k) + k)) · G1_S(ν)
+//   Beckmann corr.     y = μ(1 + Λ_V) / (μ(1 + Λ_V) + μ Λ_L)
+//   Beckmann separ.    y = 1 / (1 + Λ_L)
+//   Beckmann Schlick   y = μ(1 + Λ_V) / (μ(1 − k) + k) · G1_S(ν)
 //
-// Estimator over n Hammersley points, w_k = 0 where ν ≤ 0 (L below the horizon):
+// GGX estimator over n Hammersley points, w_k = 0 where ν ≤ 0 (L below the horizon):
 //   A = (1/n) Σ_k (1 − F_c,k) w_k,   B = (1/n) Σ_k F_c,k w_k,   F_c = (1 − V·H)^5.
 // α = 0 is a mirror: H = N, w = 1, A = 1 − (1 − μ)^5, B = (1 − μ)^5 exactly.
 //
@@ -124,12 +130,21 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
     const float aV = mf_ggx_root(mu, alpha2);
 #if LUT_VIS == 2
     const float kS = 0.5f * alpha;
+#endif
+#if LUT_NDF == 0 && LUT_VIS == 2
     const float visV = (mu + aV) / (2.0f * (mu * (1.0f - kS) + kS));
 #elif LUT_NDF == 1
     const float qV = mf_beckmann_mu_one_plus_lambda(mu, alpha);
-    const float visV = (mu + aV) / (2.0f * qV);
+#if LUT_VIS == 2
+    const float visV = qV / (mu * (1.0f - kS) + kS);
 #endif
-    float16 sumW = 0.0f, sumB = 0.0f, sumA2 = 0.0f, sumB2 = 0.0f;
+#endif
+    // GGX: sums of w, w F_c and their squares. Beckmann (self-normalised): sums of d,
+    // d y_A, d y_B, d², d² y_A, d² y_B, d² y_A², d² y_B² with y = g (1 − F_c), g F_c.
+    float16 s0 = 0.0f, s1 = 0.0f, s2 = 0.0f, s3 = 0.0f;
+#if LUT_NDF == 1
+    float16 s4 = 0.0f, s5 = 0.0f, s6 = 0.0f, s7 = 0.0f;
+#endif
     for (int k = 0; k < nPad; k += LUT_SIMD) {
 #if LUT_DIRS == 0
       const float16 t1 = vload16(0, table + LUT_TAB_T1 * nPad + k);
@@ -157,34 +172,61 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
       const float16 vdoth = sv * hxs * inv + mu * hz;
       const float16 nl = 2.0f * vdoth * hz - mu;
       const float16 fc = mf_schlick_fc16(vdoth);
-#if LUT_NDF == 0 && LUT_VIS == 0
+#if LUT_NDF == 0
+#if LUT_VIS == 0
       const float16 aL = mf_ggx_root16(nl, alpha2);
-      float16 g = MF_DIV(nl * (mu + aV), nl * aV + mu * aL);
-#elif LUT_NDF == 0 && LUT_VIS == 1
+      const float16 g = MF_DIV(nl * (mu + aV), nl * aV + mu * aL);
+#elif LUT_VIS == 1
       const float16 aL = mf_ggx_root16(nl, alpha2);
-      float16 g = MF_DIV(2.0f * nl, nl + aL);
-#elif LUT_VIS == 2
-      float16 g = visV * mf_schlick_g1_16(nl, kS);
-#elif LUT_VIS == 0
-      float16 g = MF_DIV(mu + aV, 2.0f * (qV + mu * mf_beckmann_lambda16(nl, alpha)));
+      const float16 g = MF_DIV(2.0f * nl, nl + aL);
 #else
-      float16 g = MF_DIV(visV, 1.0f + mf_beckmann_lambda16(nl, alpha));
-#endif
-#if LUT_NDF == 1
-      g *= mf_beckmann_over_ggx16(nx, t1, nz);
+      const float16 g = visV * mf_schlick_g1_16(nl, kS);
 #endif
       const float16 w = select((float16)(0.0f), g, nl > 0.0f) * mask;
       const float16 wb = w * fc, wa = w - wb;
-      sumW += w;
-      sumB += wb;
-      sumA2 += wa * wa;
-      sumB2 += wb * wb;
+      s0 += w;
+      s1 += wb;
+      s2 += wa * wa;
+      s3 += wb * wb;
+#else
+#if LUT_VIS == 0
+      const float16 g = MF_DIV(qV, qV + mu * mf_beckmann_lambda16(nl, alpha));
+#elif LUT_VIS == 1
+      const float16 g = MF_DIV(1.0f, 1.0f + mf_beckmann_lambda16(nl, alpha));
+#else
+      const float16 g = visV * mf_schlick_g1_16(nl, kS);
+#endif
+      const float16 d = mf_beckmann_over_ggx16(nx, t1, nz) * mask;
+      const float16 y = select((float16)(0.0f), g, nl > 0.0f);
+      const float16 yb = y * fc, ya = y - yb;
+      const float16 d2 = d * d;
+      s0 += d;
+      s1 += d * ya;
+      s2 += d * yb;
+      s3 += d2;
+      s4 += d2 * ya;
+      s5 += d2 * yb;
+      s6 += d2 * ya * ya;
+      s7 += d2 * yb * yb;
+#endif
     }
-    const float sw = lut_hsum16(sumW), sb = lut_hsum16(sumB);
+#if LUT_NDF == 0
+    const float sw = lut_hsum16(s0), sb = lut_hsum16(s1);
     mean.x = (sw - sb) * invN;
     mean.y = sb * invN;
-    err.x = lut_stderr(sw - sb, lut_hsum16(sumA2), invN);
-    err.y = lut_stderr(sb, lut_hsum16(sumB2), invN);
+    err.x = lut_stderr(sw - sb, lut_hsum16(s2), invN);
+    err.y = lut_stderr(sb, lut_hsum16(s3), invN);
+#else
+    // Ratio estimate Σ d y / Σ d; its standard error by the delta method,
+    // √(Σ d² (y − Ŷ)²) / Σ d, expanded into the sums above.
+    const float sd = lut_hsum16(s0), invSd = 1.0f / sd;
+    const float ea = lut_hsum16(s1) * invSd, eb = lut_hsum16(s2) * invSd;
+    const float sd2 = lut_hsum16(s3);
+    mean.x = ea;
+    mean.y = eb;
+    err.x = sqrt(fmax(lut_hsum16(s6) - 2.0f * ea * lut_hsum16(s4) + ea * ea * sd2, 0.0f)) * invSd;
+    err.y = sqrt(fmax(lut_hsum16(s7) - 2.0f * eb * lut_hsum16(s5) + eb * eb * sd2, 0.0f)) * invSd;
+#endif
   }
 
 #if LUT_CLOTH
