@@ -29,8 +29,10 @@ constexpr double kKernelTol1024 = 2e-3;
 // Acceptance: at 16384 samples (measured ~7e-5; the float sums stay below 1e-5).
 constexpr double kKernelTol16384 = 5e-4;
 // The cloth table reaches ~4 at grazing view and small α (Ashikhmin's 1/(4(ν+μ−νμ))
-// is not energy conserving), so its tolerance is the same figure relative to max(1, C).
-constexpr double kClothRelTol1024 = 2e-3;
+// is not energy conserving), so its error is taken relative to max(1, C). Measured worst
+// 1.9e-3 over every third row (bench_lut), always in the first column μ = 1/256 where g
+// drops to 0 within Δν ~ μ; 2.5e-3 leaves room for the rows the test does not sample.
+constexpr double kClothRelTol1024 = 2.5e-3;
 // Bound on A + B: the directional albedo of the f0 = 1 BRDF is at most 1; 1e-4 is the
 // acceptance slack for float sums and the estimator's noise.
 constexpr double kAlbedoSlack = 1e-4;
