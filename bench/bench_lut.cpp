@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -250,6 +251,55 @@ int main(int argc, char** argv) {
        << ", \"worst_column_1024\": " << worstCol << ", \"column0_1024\": " << fmt(e1024.column[0])
        << ", \"max_abs_16384\": " << fmt(e16k.maxAbs) << ", \"rms_16384\": " << fmt(e16k.rms)
        << ", \"column0_16384\": " << fmt(e16k.column[0]) << "},\n";
+
+  // --- why visible-normal sampling: NDF sampling at a 16² table, per N·V column ---
+  // The classic estimator (Karis 2013; three.js's 16×16 DFG table): H with pdf D(H)(N·H),
+  // weight G2 (V·H)/((N·H) μ) — unbounded as μ → 0. Same Hammersley points, in double here.
+  {
+    const int m = 16, ns = 1024;
+    std::vector<int> rows16(m);
+    for (int j = 0; j < m; ++j) rows16[j] = j;
+    const LutValues ref16 = evaluateLutReference(LutOptions{}, rowPoints(m, rows16));
+    LutOptions o16;
+    o16.size = m;
+    const LutResult k16 = computeLut(rt, o16);
+    std::ofstream g(dir + "/lut_grazing16.csv");
+    g << "column,mu,ndf_sampling_max_abs_err_A,vndf_kernel_max_abs_err_A\n";
+    double worstNdf = 0, worstV = 0;
+    for (int i = 0; i < m; ++i) {
+      double eN = 0, eV = 0;
+      const double mu = (i + 0.5) / m, sv = std::sqrt(1 - mu * mu);
+      for (int j = 0; j < m; ++j) {
+        const double alpha = std::pow((j + 0.5) / m, 2), a2 = alpha * alpha;
+        const double aV = std::sqrt(mu * mu * (1 - a2) + a2);
+        double sumA = 0;
+        for (int k = 0; k < ns; ++k) {
+          uint32_t b = uint32_t(k);
+          b = (b << 16) | (b >> 16);
+          b = ((b & 0x00ff00ffu) << 8) | ((b & 0xff00ff00u) >> 8);
+          b = ((b & 0x0f0f0f0fu) << 4) | ((b & 0xf0f0f0f0u) >> 4);
+          b = ((b & 0x33333333u) << 2) | ((b & 0xccccccccu) >> 2);
+          b = ((b & 0x55555555u) << 1) | ((b & 0xaaaaaaaau) >> 1);
+          const double u1 = (k + 0.5) / ns, u2 = b / 4294967296.0;
+          const double c2 = (1 - u1) / (1 + (a2 - 1) * u1), ch = std::sqrt(c2), sh = std::sqrt(1 - c2);
+          const double vdoth = sv * sh * std::cos(2 * 3.14159265358979323846 * u2) + mu * ch;
+          const double nl = 2 * vdoth * ch - mu;
+          if (nl <= 0 || vdoth <= 0) continue;
+          const double aL = std::sqrt(nl * nl * (1 - a2) + a2);
+          const double w = 2 * nl / (nl * aV + mu * aL) * vdoth / ch;  // G2/μ · (V·H)/(N·H)
+          sumA += w * (1 - std::pow(1 - vdoth, 5));
+        }
+        const size_t t = size_t(j) * m + i;
+        eN = std::max(eN, std::abs(sumA / ns - ref16.a[t]));
+        eV = std::max(eV, std::abs(double(k16.a[t]) - ref16.a[t]));
+      }
+      g << i << "," << fmt(mu) << "," << fmt(eN) << "," << fmt(eV) << "\n";
+      worstNdf = std::max(worstNdf, eN), worstV = std::max(worstV, eV);
+      if (i < 2) std::printf("16^2 column %d (mu %.4f): NDF sampling max |dA| %.3g, VNDF kernel %.3g\n", i, mu, eN, eV);
+    }
+    json << "  \"grazing_16\": {\"ndf_sampling_max_abs_err_A\": " << fmt(worstNdf)
+         << ", \"vndf_kernel_max_abs_err_A\": " << fmt(worstV) << "},\n";
+  }
 
   // --- precise vs native ---
   std::ofstream prec(dir + "/lut_precision.csv");
