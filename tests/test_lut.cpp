@@ -122,7 +122,7 @@ std::string name(const LutOptions& o) {
 }
 }  // namespace
 
-TEST_CASE("LUT reference: converged, closed forms at the extremes", "[lut][reference]") {
+TEST_CASE("LUT reference is converged and meets closed forms at the extremes", "[lut][reference]") {
   std::vector<LutPoint> pts;
   for (double mu : {0.0, 1.0 / 256, 0.03, 0.2, 0.5, 0.9, 1.0})
     for (double r : {0.0, 0.004, 0.05, 0.2, 0.5, 0.8, 1.0}) pts.push_back({mu, r});
@@ -190,7 +190,7 @@ TEST_CASE("LUT reference agrees with an independent quadrature over L", "[lut][r
       }
 }
 
-TEST_CASE("LUT kernel vs reference at 128^2 x 1024 samples, per N.V column", "[lut][kernel]") {
+TEST_CASE("LUT kernel vs reference at 128^2 x 1024 samples per N.V column", "[lut][kernel]") {
   auto& rt = test::runtime();
   const int n = 128;
   const auto pts = texelRows(n, sampleRows128());
@@ -236,7 +236,7 @@ TEST_CASE("LUT kernel vs reference at 16384 samples", "[lut][kernel]") {
   }
 }
 
-TEST_CASE("LUT kernel and reference at the exact extremes mu = 0, r = 0, r = 1", "[lut][kernel]") {
+TEST_CASE("LUT kernel and reference at the exact extremes mu 0 and r 0 and r 1", "[lut][kernel]") {
   auto& rt = test::runtime();
   std::vector<LutPoint> pts;
   for (double mu : {0.0, 1e-6, 0.5, 1.0})
@@ -279,7 +279,7 @@ TEST_CASE("LUT kernel and reference at the exact extremes mu = 0, r = 0, r = 1",
   CHECK(m.b[2] == Approx(1.0 / 21).margin(kKernelTol1024));
 }
 
-TEST_CASE("LUT bounds at every texel, every variant, sizes 16 to 1024", "[lut][kernel]") {
+TEST_CASE("LUT bounds at every texel of every variant for sizes 16 to 1024", "[lut][kernel]") {
   auto& rt = test::runtime();
   for (int size : {16, 17, 128, 1024}) {
     for (const auto& o0 : allVariants()) {
@@ -370,7 +370,7 @@ TEST_CASE("LUT options: bad values are usage errors", "[lut]") {
   REQUIRE(lutSidecarPath("/a/b.c/out") == "/a/b.c/out.json");
 }
 
-TEST_CASE("prtbake lut: bad input gives a clear error, exit 2 and no file", "[lut][cli]") {
+TEST_CASE("prtbake lut: bad input gives a clear error with exit 2 and no file", "[lut][cli]") {
   const std::string dir = test::tempDir("lut-bad");
   const std::string out = dir + "/t.exr";
   const std::vector<std::pair<std::string, std::string>> cases = {
