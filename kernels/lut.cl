@@ -4,6 +4,7 @@
 //   -DLUT_NDF=0|1      GGX | Beckmann
 //   -DLUT_VIS=0|1|2    height-correlated Smith | separable Smith | Schlick-GGX (k = α/2)
 //   -DLUT_CLOTH=0|1    also the Charlie/Ashikhmin cloth table
+//   -DLUT_PADDED=0|1   the sample table has padding lanes to mask, or none
 //   -DLUT_DIRS=0|1|2   disk points from the host table | precise sin/cos | native_sin/cos
 //   -DLUT_NATIVE=0|1   precise | native sqrt, rsqrt, divide, exp
 #ifndef LUT_NDF
@@ -14,6 +15,9 @@
 #endif
 #ifndef LUT_CLOTH
 #define LUT_CLOTH 0
+#endif
+#ifndef LUT_PADDED
+#define LUT_PADDED 1  // 0 when the sample count is a multiple of LUT_SIMD: no padding lanes
 #endif
 #ifndef LUT_DIRS
 #define LUT_DIRS 0
@@ -131,8 +135,13 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
 #if LUT_VIS == 2
     const float kS = 0.5f * alpha;
 #endif
-#if LUT_NDF == 0 && LUT_VIS == 2
-    const float visV = (mu + aV) / (2.0f * (mu * (1.0f - kS) + kS));
+    const float svAlpha = sv * alpha;
+#if LUT_NDF == 0 && LUT_VIS == 0
+    const float gScale = mu + aV;
+#elif LUT_NDF == 0 && LUT_VIS == 1
+    const float gScale = 2.0f;
+#elif LUT_NDF == 0
+    const float gScale = (mu + aV) / (2.0f * (mu * (1.0f - kS) + kS));
 #elif LUT_NDF == 1
     const float qV = mf_beckmann_mu_one_plus_lambda(mu, alpha);
 #if LUT_VIS == 2
@@ -147,9 +156,10 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
 #endif
     for (int k = 0; k < nPad; k += LUT_SIMD) {
 #if LUT_DIRS == 0
-      const float16 t1 = vload16(0, table + LUT_TAB_T1 * nPad + k);
+      const float16 t1sq = vload16(0, table + LUT_TAB_T1SQ * nPad + k);
       const float16 t2r = vload16(0, table + LUT_TAB_T2 * nPad + k);
       const float16 c = vload16(0, table + LUT_TAB_C * nPad + k);
+      const float16 c2 = vload16(0, table + LUT_TAB_C2 * nPad + k);
 #else
       const float16 r = sqrt(vload16(0, table + LUT_TAB_U1 * nPad + k));
       const float16 phi = LUT_TWO_PI * vload16(0, table + LUT_TAB_U2 * nPad + k);
@@ -158,31 +168,37 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
 #else
       const float16 t1 = r * native_cos(phi), t2r = r * native_sin(phi);
 #endif
-      const float16 c = sqrt(fmax(1.0f - t1 * t1, 0.0f));
+      const float16 t1sq = t1 * t1, c2 = fmax(1.0f - t1sq, 0.0f), c = sqrt(c2);
 #endif
+#if LUT_PADDED
       const float16 mask = vload16(0, table + LUT_TAB_MASK * nPad + k);
-      // Heitz 2018 in the frame T1 = (0, 1, 0), T2 = (−v_z, 0, v_x) of the stretched view.
+#endif
+      // Heitz 2018 in the frame T1 = (0, 1, 0), T2 = (−v_z, 0, v_x) of the stretched view:
+      // unit normal n = (nx, t1, nz) there, stretched back to H ∝ (α nx, α t1, nz).
       const float16 t2 = oms * c + s * t2r;
-      const float16 nw = MF_SQRT(fmax(1.0f - t1 * t1 - t2 * t2, 0.0f));
+      const float16 nw = MF_SQRT(fmax(c2 - t2 * t2, 0.0f));
       const float16 nx = nw * vhx - t2 * vhz;
       const float16 nz = fmax(t2 * vhx + nw * vhz, 0.0f);
-      const float16 hxs = alpha * nx, hys = alpha * t1;
-      const float16 inv = MF_RSQRT(hxs * hxs + hys * hys + nz * nz);
+      const float16 nxy2 = nx * nx + t1sq;
+      const float16 inv = MF_RSQRT(alpha2 * nxy2 + nz * nz);
       const float16 hz = nz * inv;
-      const float16 vdoth = sv * hxs * inv + mu * hz;
+      const float16 vdoth = (svAlpha * nx + mu * nz) * inv;
       const float16 nl = 2.0f * vdoth * hz - mu;
       const float16 fc = mf_schlick_fc16(vdoth);
 #if LUT_NDF == 0
+      // g = w / gScale (the per-point factor of the weight is applied after the loop).
 #if LUT_VIS == 0
-      const float16 aL = mf_ggx_root16(nl, alpha2);
-      const float16 g = MF_DIV(nl * (mu + aV), nl * aV + mu * aL);
+      const float16 g = MF_DIV(nl, nl * aV + mu * mf_ggx_root16(nl, alpha2));
 #elif LUT_VIS == 1
-      const float16 aL = mf_ggx_root16(nl, alpha2);
-      const float16 g = MF_DIV(2.0f * nl, nl + aL);
+      const float16 g = MF_DIV(nl, nl + mf_ggx_root16(nl, alpha2));
 #else
-      const float16 g = visV * mf_schlick_g1_16(nl, kS);
+      const float16 g = mf_schlick_g1_16(nl, kS);
 #endif
+#if LUT_PADDED
       const float16 w = select((float16)(0.0f), g, nl > 0.0f) * mask;
+#else
+      const float16 w = select((float16)(0.0f), g, nl > 0.0f);
+#endif
       const float16 wb = w * fc, wa = w - wb;
       s0 += w;
       s1 += wb;
@@ -196,7 +212,11 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
 #else
       const float16 g = visV * mf_schlick_g1_16(nl, kS);
 #endif
-      const float16 d = mf_beckmann_over_ggx16(nx, t1, nz) * mask;
+#if LUT_PADDED
+      const float16 d = mf_beckmann_over_ggx16(nxy2, nz) * mask;
+#else
+      const float16 d = mf_beckmann_over_ggx16(nxy2, nz);
+#endif
       const float16 y = select((float16)(0.0f), g, nl > 0.0f);
       const float16 yb = y * fc, ya = y - yb;
       const float16 d2 = d * d;
@@ -212,10 +232,10 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
     }
 #if LUT_NDF == 0
     const float sw = lut_hsum16(s0), sb = lut_hsum16(s1);
-    mean.x = (sw - sb) * invN;
-    mean.y = sb * invN;
-    err.x = lut_stderr(sw - sb, lut_hsum16(s2), invN);
-    err.y = lut_stderr(sb, lut_hsum16(s3), invN);
+    mean.x = gScale * (sw - sb) * invN;
+    mean.y = gScale * sb * invN;
+    err.x = gScale * lut_stderr(sw - sb, lut_hsum16(s2), invN);
+    err.y = gScale * lut_stderr(sb, lut_hsum16(s3), invN);
 #else
     // Ratio estimate Σ d y / Σ d; its standard error by the delta method,
     // √(Σ d² (y − Ŷ)²) / Σ d, expanded into the sums above.

@@ -42,6 +42,8 @@ std::vector<float> sampleTable(int samples, int nPad) {
     at(LUT_TAB_T1, k) = float(t1);
     at(LUT_TAB_T2, k) = float(r * sphi);
     at(LUT_TAB_C, k) = float(std::sqrt(std::max(0.0, 1 - t1 * t1)));
+    at(LUT_TAB_T1SQ, k) = float(t1 * t1);
+    at(LUT_TAB_C2, k) = float(std::max(0.0, 1 - t1 * t1));
     at(LUT_TAB_MASK, k) = k < samples ? 1.0f : 0.0f;
     at(LUT_TAB_U1, k) = float(u1);
     at(LUT_TAB_U2, k) = float(u2);
@@ -69,6 +71,7 @@ std::string buildOptions(const LutOptions& o) {
   std::string s = "-DLUT_NDF=" + std::to_string(o.ndf == LutNdf::Beckmann ? 1 : 0) +
                   " -DLUT_VIS=" + std::to_string(int(o.visibility)) +
                   " -DLUT_CLOTH=" + std::to_string(o.cloth ? 1 : 0) +
+                  " -DLUT_PADDED=" + std::to_string(o.samples % LUT_SIMD ? 1 : 0) +
                   " -DLUT_DIRS=" + std::to_string(int(o.directions)) +
                   " -DLUT_NATIVE=" + std::to_string(o.fastMath ? 1 : 0);
   if (o.fastMath) s += " -cl-fast-relaxed-math";
