@@ -78,36 +78,62 @@ std::string buildOptions(const LutOptions& o) {
   return s;
 }
 
-// Runs lut_eval over (μ, α) pairs; fills mean/err as 4 floats per point.
-void runKernel(Runtime& rt, const LutOptions& o, const std::vector<float>& muAlpha, std::vector<float>& raw,
-               double* kernelSeconds, double* buildSeconds) {
-  const int count = int(muAlpha.size() / 2);
+// Per-point results of the kernel, one entry per point.
+struct KernelOut {
+  std::vector<float> a, b, cloth, stdErr;
+};
+
+// Runs lut_eval over `count` points; pointAt(i) gives point i as (μ, α). Launches cover at
+// most kChunk points so that device and staging memory stay bounded for 8192² tables.
+template <class PointAt>
+KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& pointAt, double* kernelSeconds,
+                    double* buildSeconds) {
+  constexpr size_t kChunk = size_t(1) << 20;
   const int nPad = (o.samples + LUT_SIMD - 1) / LUT_SIMD * LUT_SIMD;
   const double build0 = rt.buildSeconds();
   cl::Kernel kernel = rt.kernel("lut.cl", "lut_eval", buildOptions(o));
   if (buildSeconds) *buildSeconds = rt.buildSeconds() - build0;
+  KernelOut res;
+  res.a.resize(count), res.b.resize(count), res.stdErr.resize(count);
+  if (o.cloth) res.cloth.resize(count);
+  if (kernelSeconds) *kernelSeconds = 0;
+  if (count == 0) return res;
   const std::vector<float> table = sampleTable(o.samples, nPad);
-  raw.assign(size_t(count) * 4 * LUT_OUT_FLOAT4S, 0.0f);
-  if (count == 0) return;
-  cl::Buffer pts(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, muAlpha.size() * sizeof(float),
-                 const_cast<float*>(muAlpha.data()));
   cl::Buffer tab(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table.size() * sizeof(float),
                  const_cast<float*>(table.data()));
+  const size_t chunk = std::min(count, kChunk);
+  std::vector<float> muAlpha(2 * chunk), raw(chunk * 4 * LUT_OUT_FLOAT4S);
+  cl::Buffer pts(rt.context(), CL_MEM_READ_ONLY, muAlpha.size() * sizeof(float));
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, raw.size() * sizeof(float));
-  kernel.setArg(0, count);
-  kernel.setArg(1, pts);
-  kernel.setArg(2, nPad);
-  kernel.setArg(3, float(1.0 / o.samples));
-  kernel.setArg(4, tab);
-  kernel.setArg(5, out);
-  // A fixed local size splits the texels evenly over the compute units.
-  const size_t local = 16, global = (size_t(count) + local - 1) / local * local;
-  rt.queue().finish();
-  const auto t0 = std::chrono::steady_clock::now();
-  rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
-  rt.queue().finish();
-  if (kernelSeconds) *kernelSeconds = secondsSince(t0);
-  rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, raw.size() * sizeof(float), raw.data());
+  for (size_t first = 0; first < count; first += chunk) {
+    const size_t m = std::min(chunk, count - first);
+    for (size_t i = 0; i < m; ++i) {
+      const auto p = pointAt(first + i);
+      muAlpha[2 * i] = p.first, muAlpha[2 * i + 1] = p.second;
+    }
+    rt.queue().enqueueWriteBuffer(pts, CL_TRUE, 0, 2 * m * sizeof(float), muAlpha.data());
+    kernel.setArg(0, int(m));
+    kernel.setArg(1, pts);
+    kernel.setArg(2, nPad);
+    kernel.setArg(3, float(1.0 / o.samples));
+    kernel.setArg(4, tab);
+    kernel.setArg(5, out);
+    // A fixed local size splits the points evenly over the compute units.
+    const size_t local = 16, global = (m + local - 1) / local * local;
+    rt.queue().finish();
+    const auto t0 = std::chrono::steady_clock::now();
+    rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
+    rt.queue().finish();
+    if (kernelSeconds) *kernelSeconds += secondsSince(t0);
+    rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, m * 4 * LUT_OUT_FLOAT4S * sizeof(float), raw.data());
+    for (size_t i = 0; i < m; ++i) {
+      const float* v = &raw[4 * LUT_OUT_FLOAT4S * i];  // (A, B, C, 0), (σ_A, σ_B, σ_C, 0)
+      res.a[first + i] = v[0], res.b[first + i] = v[1];
+      if (o.cloth) res.cloth[first + i] = v[2];
+      res.stdErr[first + i] = std::max({v[4], v[5], o.cloth ? v[6] : 0.0f});
+    }
+  }
+  return res;
 }
 
 }  // namespace
@@ -157,24 +183,18 @@ LutValues evaluateLut(Runtime& rt, const LutOptions& options, const std::vector<
   LutOptions o = options;
   o.size = 1;
   validateLutOptions(o);
-  std::vector<float> muAlpha;
-  muAlpha.reserve(points.size() * 2);
-  for (const auto& p : points) {
-    muAlpha.push_back(float(std::clamp(p.mu, 0.0, 1.0)));
-    muAlpha.push_back(float(lutAlpha(o, p.roughness)));
-  }
-  std::vector<float> raw;
-  runKernel(rt, o, muAlpha, raw, kernelSeconds, nullptr);
+  const KernelOut k = runKernel(
+      rt, o, points.size(),
+      [&](size_t i) {
+        return std::pair<float, float>(float(std::clamp(points[i].mu, 0.0, 1.0)),
+                                       float(lutAlpha(o, points[i].roughness)));
+      },
+      kernelSeconds, nullptr);
   LutValues v;
-  const size_t n = points.size();
-  v.a.resize(n), v.b.resize(n), v.stdErr.resize(n);
-  if (o.cloth) v.cloth.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const float* m = &raw[8 * i];
-    v.a[i] = m[0], v.b[i] = m[1];
-    if (o.cloth) v.cloth[i] = m[2];
-    v.stdErr[i] = std::max({m[4], m[5], o.cloth ? m[6] : 0.0f});
-  }
+  v.a.assign(k.a.begin(), k.a.end());
+  v.b.assign(k.b.begin(), k.b.end());
+  v.cloth.assign(k.cloth.begin(), k.cloth.end());
+  v.stdErr.assign(k.stdErr.begin(), k.stdErr.end());
   return v;
 }
 
@@ -226,23 +246,16 @@ LutResult computeLut(Runtime& rt, const LutOptions& options) {
   r.device = rt.deviceLabel();
   const int n = options.size;
   const size_t texels = size_t(n) * n;
-  std::vector<float> muAlpha(2 * texels);
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const size_t t = size_t(j) * n + i;
-      muAlpha[2 * t] = float((i + 0.5) / n);
-      muAlpha[2 * t + 1] = float(lutAlpha(options, (j + 0.5) / n));
-    }
-  std::vector<float> raw;
-  runKernel(rt, options, muAlpha, raw, &r.kernelSeconds, &r.buildSeconds);
-  r.a.resize(texels), r.b.resize(texels);
-  std::vector<float> cloth(options.cloth ? texels : 0), stdErr(texels);
-  for (size_t t = 0; t < texels; ++t) {
-    const float* m = &raw[8 * t];
-    r.a[t] = m[0], r.b[t] = m[1];
-    if (options.cloth) cloth[t] = m[2];
-    stdErr[t] = std::max({m[4], m[5], options.cloth ? m[6] : 0.0f});
-  }
+  KernelOut k = runKernel(
+      rt, options, texels,
+      [&](size_t t) {
+        const size_t i = t % size_t(n), j = t / size_t(n);
+        return std::pair<float, float>(float((i + 0.5) / n), float(lutAlpha(options, (j + 0.5) / n)));
+      },
+      &r.kernelSeconds, &r.buildSeconds);
+  r.a = std::move(k.a);
+  r.b = std::move(k.b);
+  const std::vector<float> cloth = std::move(k.cloth), stdErr = std::move(k.stdErr);
   detail::finishLut(r, cloth, stdErr);
   r.totalSeconds = secondsSince(t0);
   return r;
