@@ -39,10 +39,9 @@ std::vector<float> sampleTable(int samples, int nPad) {
     const double u1 = (kk + 0.5) / samples, u2 = radicalInverse2(uint32_t(kk));
     const double r = std::sqrt(u1), cphi = std::cos(2 * kPi * u2), sphi = std::sin(2 * kPi * u2);
     const double t1 = r * cphi;
-    at(LUT_TAB_T1, k) = float(t1);
+    at(LUT_TAB_T1SQ, k) = float(t1 * t1);
     at(LUT_TAB_T2, k) = float(r * sphi);
     at(LUT_TAB_C, k) = float(std::sqrt(std::max(0.0, 1 - t1 * t1)));
-    at(LUT_TAB_T1SQ, k) = float(t1 * t1);
     at(LUT_TAB_C2, k) = float(std::max(0.0, 1 - t1 * t1));
     at(LUT_TAB_MASK, k) = k < samples ? 1.0f : 0.0f;
     at(LUT_TAB_U1, k) = float(u1);
@@ -61,8 +60,6 @@ std::vector<float> sampleTable(int samples, int nPad) {
       at(LUT_TAB_CL_BRANCH, k) = 2.0f;
       at(LUT_TAB_CL_A, k) = float(std::log((u1 - b0 - b1) / (1 - b0 - b1)));
     }
-    at(LUT_TAB_COSPHI, k) = float(cphi);
-    at(LUT_TAB_SINPHI, k) = float(sphi);
   }
   return t;
 }
