@@ -1,0 +1,261 @@
+// Split-sum BRDF tables on the device: options, the sample table, the kernel launch.
+#include "prtbake/lut.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+
+#include "lut_sampling.clh"
+#include "prtbake/error.h"
+#include "prtbake/runtime.h"
+
+namespace prtbake {
+namespace {
+
+const double kPi = 3.14159265358979323846;
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Radical inverse in base 2 of k (van der Corput), exact in double for k < 2^32.
+double radicalInverse2(uint32_t k) {
+  k = (k << 16) | (k >> 16);
+  k = ((k & 0x00ff00ffu) << 8) | ((k & 0xff00ff00u) >> 8);
+  k = ((k & 0x0f0f0f0fu) << 4) | ((k & 0xf0f0f0f0u) >> 4);
+  k = ((k & 0x33333333u) << 2) | ((k & 0xccccccccu) >> 2);
+  k = ((k & 0x55555555u) << 1) | ((k & 0xaaaaaaaau) >> 1);
+  return double(k) * (1.0 / 4294967296.0);
+}
+
+// The per-sample table of lut_sampling.clh, in double then rounded to float.
+std::vector<float> sampleTable(int samples, int nPad) {
+  std::vector<float> t(size_t(LUT_TAB_ROWS) * nPad, 0.0f);
+  auto at = [&](int row, int k) -> float& { return t[size_t(row) * nPad + k]; };
+  for (int k = 0; k < nPad; ++k) {
+    // Padding repeats a harmless point (mask 0) so no lane computes NaN.
+    const int kk = k < samples ? k : 0;
+    const double u1 = (kk + 0.5) / samples, u2 = radicalInverse2(uint32_t(kk));
+    const double r = std::sqrt(u1), cphi = std::cos(2 * kPi * u2), sphi = std::sin(2 * kPi * u2);
+    const double t1 = r * cphi;
+    at(LUT_TAB_T1SQ, k) = float(t1 * t1);
+    at(LUT_TAB_T2, k) = float(r * sphi);
+    at(LUT_TAB_C, k) = float(std::sqrt(std::max(0.0, 1 - t1 * t1)));
+    at(LUT_TAB_C2, k) = float(std::max(0.0, 1 - t1 * t1));
+    at(LUT_TAB_MASK, k) = k < samples ? 1.0f : 0.0f;
+    at(LUT_TAB_U1, k) = float(u1);
+    at(LUT_TAB_U2, k) = float(u2);
+    // Cloth mixture (lut.cl): branch by u1, u' = u1 rescaled within its branch.
+    const double b0 = LUT_CLOTH_BETA0, b1 = LUT_CLOTH_BETA1;
+    if (u1 < b0) {
+      const double th = kPi / 2 * u1 / b0;
+      at(LUT_TAB_CL_BRANCH, k) = 0.0f;
+      at(LUT_TAB_CL_A, k) = float(std::log(std::sin(th)));
+      at(LUT_TAB_CL_B, k) = float(std::cos(th));
+    } else if (u1 < b0 + b1) {
+      at(LUT_TAB_CL_BRANCH, k) = 1.0f;
+      at(LUT_TAB_CL_A, k) = float((u1 - b0) / b1);
+    } else {
+      at(LUT_TAB_CL_BRANCH, k) = 2.0f;
+      at(LUT_TAB_CL_A, k) = float(std::log((u1 - b0 - b1) / (1 - b0 - b1)));
+    }
+  }
+  return t;
+}
+
+std::string buildOptions(const LutOptions& o) {
+  std::string s = "-DLUT_NDF=" + std::to_string(o.ndf == LutNdf::Beckmann ? 1 : 0) +
+                  " -DLUT_VIS=" + std::to_string(int(o.visibility)) +
+                  " -DLUT_CLOTH=" + std::to_string(o.cloth ? 1 : 0) +
+                  " -DLUT_PADDED=" + std::to_string(o.samples % LUT_SIMD ? 1 : 0) +
+                  " -DLUT_DIRS=" + std::to_string(int(o.directions)) +
+                  " -DLUT_NATIVE=" + std::to_string(o.fastMath ? 1 : 0);
+  if (o.fastMath) s += " -cl-fast-relaxed-math";
+  return s;
+}
+
+// Per-point results of the kernel, one entry per point.
+struct KernelOut {
+  std::vector<float> a, b, cloth, stdErr;
+};
+
+// Runs lut_eval over `count` points; pointAt(i) gives point i as (μ, α). Launches cover at
+// most kChunk points so that device and staging memory stay bounded for 8192² tables.
+template <class PointAt>
+KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& pointAt, double* kernelSeconds,
+                    double* buildSeconds) {
+  constexpr size_t kChunk = size_t(1) << 20;
+  const int nPad = (o.samples + LUT_SIMD - 1) / LUT_SIMD * LUT_SIMD;
+  const double build0 = rt.buildSeconds();
+  cl::Kernel kernel = rt.kernel("lut.cl", "lut_eval", buildOptions(o));
+  if (buildSeconds) *buildSeconds = rt.buildSeconds() - build0;
+  KernelOut res;
+  res.a.resize(count), res.b.resize(count), res.stdErr.resize(count);
+  if (o.cloth) res.cloth.resize(count);
+  if (kernelSeconds) *kernelSeconds = 0;
+  if (count == 0) return res;
+  const std::vector<float> table = sampleTable(o.samples, nPad);
+  cl::Buffer tab(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table.size() * sizeof(float),
+                 const_cast<float*>(table.data()));
+  const size_t chunk = std::min(count, kChunk);
+  std::vector<float> muAlpha(2 * chunk), raw(chunk * 4 * LUT_OUT_FLOAT4S);
+  cl::Buffer pts(rt.context(), CL_MEM_READ_ONLY, muAlpha.size() * sizeof(float));
+  cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, raw.size() * sizeof(float));
+  for (size_t first = 0; first < count; first += chunk) {
+    const size_t m = std::min(chunk, count - first);
+    for (size_t i = 0; i < m; ++i) {
+      const auto p = pointAt(first + i);
+      muAlpha[2 * i] = p.first, muAlpha[2 * i + 1] = p.second;
+    }
+    rt.queue().enqueueWriteBuffer(pts, CL_TRUE, 0, 2 * m * sizeof(float), muAlpha.data());
+    kernel.setArg(0, int(m));
+    kernel.setArg(1, pts);
+    kernel.setArg(2, nPad);
+    kernel.setArg(3, float(1.0 / o.samples));
+    kernel.setArg(4, tab);
+    kernel.setArg(5, out);
+    // A fixed local size splits the points evenly over the compute units.
+    const size_t local = 16, global = (m + local - 1) / local * local;
+    rt.queue().finish();
+    const auto t0 = std::chrono::steady_clock::now();
+    rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
+    rt.queue().finish();
+    if (kernelSeconds) *kernelSeconds += secondsSince(t0);
+    rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, m * 4 * LUT_OUT_FLOAT4S * sizeof(float), raw.data());
+    for (size_t i = 0; i < m; ++i) {
+      const float* v = &raw[4 * LUT_OUT_FLOAT4S * i];  // (A, B, C, 0), (σ_A, σ_B, σ_C, 0)
+      res.a[first + i] = v[0], res.b[first + i] = v[1];
+      if (o.cloth) res.cloth[first + i] = v[2];
+      res.stdErr[first + i] = std::max({v[4], v[5], o.cloth ? v[6] : 0.0f});
+    }
+  }
+  return res;
+}
+
+}  // namespace
+
+void validateLutOptions(const LutOptions& o) {
+  if (o.size < 1 || o.size > kLutMaxSize)
+    throw UsageError("--size", std::to_string(o.size) + " is out of range [1, " + std::to_string(kLutMaxSize) + "]");
+  if (o.samples < 1 || o.samples > kLutMaxSamples)
+    throw UsageError("--samples",
+                     std::to_string(o.samples) + " is out of range [1, " + std::to_string(kLutMaxSamples) + "]");
+  if (o.cloth && o.multiscatter)
+    throw UsageError("--cloth", "the B channel holds one third table: choose --cloth or --multiscatter");
+}
+
+LutNdf parseLutNdf(const std::string& text, const std::string& subject) {
+  if (text == "ggx") return LutNdf::Ggx;
+  if (text == "beckmann") return LutNdf::Beckmann;
+  throw UsageError(subject, "unknown NDF '" + text + "' (expected ggx|beckmann)");
+}
+
+LutVisibility parseLutVisibility(const std::string& text, const std::string& subject) {
+  if (text == "smith-correlated") return LutVisibility::SmithCorrelated;
+  if (text == "smith-separable") return LutVisibility::SmithSeparable;
+  if (text == "schlick-ggx") return LutVisibility::SchlickGgx;
+  throw UsageError(subject,
+                   "unknown visibility '" + text + "' (expected smith-correlated|smith-separable|schlick-ggx)");
+}
+
+const char* lutNdfName(LutNdf ndf) { return ndf == LutNdf::Ggx ? "ggx" : "beckmann"; }
+
+const char* lutVisibilityName(LutVisibility vis) {
+  switch (vis) {
+    case LutVisibility::SmithCorrelated: return "smith-correlated";
+    case LutVisibility::SmithSeparable: return "smith-separable";
+    case LutVisibility::SchlickGgx: return "schlick-ggx";
+  }
+  return "?";
+}
+
+double lutAlpha(const LutOptions& options, double roughness) {
+  const double r = std::clamp(roughness, 0.0, 1.0);
+  return options.alphaDirect ? r : r * r;
+}
+
+LutValues evaluateLut(Runtime& rt, const LutOptions& options, const std::vector<LutPoint>& points,
+                      double* kernelSeconds) {
+  LutOptions o = options;
+  o.size = 1;
+  validateLutOptions(o);
+  const KernelOut k = runKernel(
+      rt, o, points.size(),
+      [&](size_t i) {
+        return std::pair<float, float>(float(std::clamp(points[i].mu, 0.0, 1.0)),
+                                       float(lutAlpha(o, points[i].roughness)));
+      },
+      kernelSeconds, nullptr);
+  LutValues v;
+  v.a.assign(k.a.begin(), k.a.end());
+  v.b.assign(k.b.begin(), k.b.end());
+  v.cloth.assign(k.cloth.begin(), k.cloth.end());
+  v.stdErr.assign(k.stdErr.begin(), k.stdErr.end());
+  return v;
+}
+
+namespace detail {
+// Fills the derived tables (third, Kulla–Conty, error summary) from a, b, cloth.
+void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<float>& stdErr) {
+  const int n = r.size;
+  const size_t texels = size_t(n) * n;
+  if (r.options.multiscatter) {
+    r.third.resize(texels);
+    for (size_t i = 0; i < texels; ++i) r.third[i] = r.a[i] + r.b[i];
+  } else if (r.options.cloth) {
+    r.third = cloth;
+  }
+  if (r.options.kullaConty) {
+    r.e.resize(texels);
+    r.eAvg.resize(n);
+    for (int j = 0; j < n; ++j) {
+      double sum = 0;
+      for (int i = 0; i < n; ++i) {
+        const size_t t = size_t(j) * n + i;
+        r.e[t] = r.a[t] + r.b[t];
+        sum += double(r.e[t]) * ((i + 0.5) / n);
+      }
+      r.eAvg[j] = float(2.0 * sum / n);
+    }
+  }
+  double mx = 0, sum = 0;
+  for (float e : stdErr) mx = std::max(mx, double(e)), sum += e;
+  r.stdErrMax = mx;
+  r.stdErrMean = stdErr.empty() ? 0 : sum / double(stdErr.size());
+}
+
+std::vector<LutPoint> texelPoints(int n) {
+  std::vector<LutPoint> pts;
+  pts.reserve(size_t(n) * n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) pts.push_back({(i + 0.5) / n, (j + 0.5) / n});
+  return pts;
+}
+}  // namespace detail
+
+LutResult computeLut(Runtime& rt, const LutOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validateLutOptions(options);
+  LutResult r;
+  r.options = options;
+  r.size = options.size;
+  r.device = rt.deviceLabel();
+  const int n = options.size;
+  const size_t texels = size_t(n) * n;
+  KernelOut k = runKernel(
+      rt, options, texels,
+      [&](size_t t) {
+        const size_t i = t % size_t(n), j = t / size_t(n);
+        return std::pair<float, float>(float((i + 0.5) / n), float(lutAlpha(options, (j + 0.5) / n)));
+      },
+      &r.kernelSeconds, &r.buildSeconds);
+  r.a = std::move(k.a);
+  r.b = std::move(k.b);
+  const std::vector<float> cloth = std::move(k.cloth), stdErr = std::move(k.stdErr);
+  detail::finishLut(r, cloth, stdErr);
+  r.totalSeconds = secondsSince(t0);
+  return r;
+}
+
+}  // namespace prtbake
