@@ -8,6 +8,7 @@
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
+#include "prtbake/lut.h"
 #include "prtbake/sh.h"
 
 namespace prtbake::jobs {
@@ -77,11 +78,31 @@ ExecResult runTransport(const Job& job, ExecContext&) {
 }
 
 // --- lut: split-sum BRDF lookup table (prtbake lut) ---
-// NOT WIRED YET: replaced by the call into the LUT library when it is merged
-// (compute the table with job.params, write ctx.output("exr") and, when
-// requested, the json sidecar).
-ExecResult runLut(const Job& job, ExecContext&) {
-  throw Error(job.id, "job type 'lut' is not available in this build");
+ExecResult runLut(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  LutOptions options;
+  options.size = p["size"].get<int>();
+  options.samples = p["samples"].get<int>();
+  options.ndf = parseLutNdf(p["ndf"].get<std::string>(), "ndf");
+  options.visibility = parseLutVisibility(p["visibility"].get<std::string>(), "visibility");
+  options.multiscatter = p["multiscatter"].get<bool>();
+  options.cloth = p["cloth"].get<bool>();
+  options.kullaConty = p["kulla_conty"].get<bool>();
+  options.alphaDirect = p["alpha_direct"].get<bool>();
+  validateLutOptions(options);
+  const LutResult lut = computeLut(ctx.runtime(), options);
+  const std::string exr = ctx.output("exr");
+  const std::string sidecar = ctx.wants("json") ? ctx.output("json") : std::string();
+  writeLutFiles(lut, exr, sidecar, p["half"].get<bool>());
+  ExecResult result;
+  result.inputFiles = {};
+  result.report = {{"size", lut.size},
+                   {"samples", options.samples},
+                   {"standard_error_max", lut.stdErrMax},
+                   {"standard_error_mean", lut.stdErrMean},
+                   {"timings", {{"kernel_seconds", lut.kernelSeconds}, {"build_seconds", lut.buildSeconds},
+                                {"total_seconds", lut.totalSeconds}}}};
+  return result;
 }
 
 KeySpec integer(const std::string& name, long long def, double lo, double hi) {
@@ -143,9 +164,13 @@ std::vector<JobType> makeJobTypes() {
               choice("visibility", "smith-correlated", {"smith-correlated", "smith-separable", "schlick-ggx"}),
               boolean("multiscatter", false),
               boolean("cloth", false),
+              boolean("kulla_conty", false),
+              boolean("alpha_direct", false),
               boolean("half", false)};
-  lut.check = [](const json&, const json& p) {
+  lut.check = [](const json& raw, const json& p) {
     std::vector<std::pair<std::string, std::string>> problems;
+    if (raw.contains("outputs") && raw["outputs"].is_object() && !raw["outputs"].contains("exr"))
+      problems.push_back({"outputs", "a lut job needs an 'exr' output (the 'json' sidecar describes it)"});
     if (p["multiscatter"] == true && p["cloth"] == true)
       problems.push_back({"cloth", "cannot be combined with multiscatter (both use the B channel)"});
     return problems;

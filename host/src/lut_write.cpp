@@ -88,10 +88,14 @@ std::string lutSidecarPath(const std::string& exrPath) {
 }
 
 void writeLut(const LutResult& lut, const std::string& exrPath, bool half, double commandSeconds) {
+  writeLutFiles(lut, exrPath, lutSidecarPath(exrPath), half, commandSeconds);
+}
+
+void writeLutFiles(const LutResult& lut, const std::string& exrPath, const std::string& jsonPath, bool half,
+                   double commandSeconds) {
   const size_t texels = size_t(lut.size) * lut.size;
   if (lut.size <= 0 || lut.a.size() != texels || lut.b.size() != texels)
     throw OutputError(exrPath, "LUT result is empty or inconsistent");
-  const std::string jsonPath = lutSidecarPath(exrPath);
   if (jsonPath == exrPath) throw OutputError(exrPath, "the sidecar would overwrite the image");
   std::vector<float> eAvgImage;
   std::vector<ExrChannel> channels = {{"R", lut.a.data()}, {"G", lut.b.data()}};
@@ -106,9 +110,13 @@ void writeLut(const LutResult& lut, const std::string& exrPath, bool half, doubl
   const std::string text = sidecar(lut, exrPath, half, commandSeconds).dump(2) + "\n";
   ExrWriteOptions wo;
   wo.half = half;
-  wo.attributes = {{"prtbake:product", "brdf_lut"},
-                   {"prtbake:version", version()},
-                   {"prtbake:sidecar", jsonPath.substr(jsonPath.find_last_of('/') + 1)}};
+  wo.attributes = {{"prtbake:product", "brdf_lut"}, {"prtbake:version", version()}};
+  if (jsonPath == lutSidecarPath(exrPath))
+    wo.attributes.push_back({"prtbake:sidecar", jsonPath.substr(jsonPath.find_last_of('/') + 1)});
+  if (jsonPath.empty()) {
+    writeExr(exrPath, lut.size, lut.size, channels, wo);
+    return;
+  }
   // The sidecar goes first through its own temp file; if the image then fails,
   // the sidecar is removed again so that a failed write leaves nothing.
   writeFileAtomic(jsonPath, text);

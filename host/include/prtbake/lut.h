@@ -116,5 +116,9 @@ std::string lutSidecarPath(const std::string& exrPath);
 // Throws OutputError.
 void writeLut(const LutResult& lut, const std::string& exrPath, bool half = false,
               double commandSeconds = -1);
+// The same with the sidecar's path given (empty: no sidecar), for runners that
+// choose their own file names.
+void writeLutFiles(const LutResult& lut, const std::string& exrPath, const std::string& jsonPath, bool half = false,
+                   double commandSeconds = -1);
 
 }  // namespace prtbake
