@@ -137,6 +137,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
       for (int c = 0; c < ch; ++c)
         for (int k = 0; k < nc; ++k) prev[size_t(v) * stride + c * nc + k] = t0[size_t(v) * nc + k];
     std::vector<double> total(prev.begin(), prev.end());
+    if (o.keepBounces) r.bounceCoeffs.push_back(prev);
     // Triangle indices and albedo for the gather.
     std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
     for (size_t t = 0; t < mesh.triangleCount(); ++t)
@@ -169,6 +170,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
       }
       r.bounceMaxNorm.push_back(maxNorm);
       r.bouncesUsed = b;
+      if (o.keepBounces) r.bounceCoeffs.push_back(next);
       if (maxNorm < o.bounceTolerance) break;
       std::swap(prevBuf, nextBuf);
     }

@@ -43,6 +43,8 @@ struct TransportOptions {
   double bounceTolerance = 1e-4;
   // Replaces every vertex's albedo (linear RGB) when set.
   std::optional<std::array<float, 3>> albedoOverride;
+  // Interreflected only: also return each bounce's T^(k) (TransportResult::bounceCoeffs).
+  bool keepBounces = false;
 };
 
 // Orders accepted by the transport product.
@@ -60,6 +62,8 @@ struct TransportResult {
   double maxStdError = 0, meanStdError = 0;
   int bouncesUsed = 0;                 // interreflected: bounces computed
   std::vector<double> bounceMaxNorm;   // max_p |T^(k)(p)| for k = 1..bouncesUsed
+  // T^(0), T^(1), ... (same layout as coeffs) when TransportOptions::keepBounces is set.
+  std::vector<std::vector<float>> bounceCoeffs;
   uint64_t rays = 0;                   // rays traced (0 when unshadowed)
   int samples = 0;
   double bvhSeconds = 0, kernelSeconds = 0, totalSeconds = 0;
