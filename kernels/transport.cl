@@ -10,7 +10,17 @@
 //   T^(k+1)(p) = (1/π) ∫ ρ(q) T^(k)(q) max(0, n·ω) dω ≈ (1/N) Σ_{s hits q_s} ρ(q_s) T^(k)(q_s).
 //
 // Build options: SH_ORDER (1..8 or more), VISIBILITY (0: unshadowed, no BVH access;
-// 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only).
+// 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only), BVH_PACKET (0: the
+// scalar kernels below; 8 or 16: only the packet kernels at the end of this file,
+// which evaluate SH on float8/float16 directions).
+#ifndef BVH_PACKET
+#define BVH_PACKET 0
+#endif
+#if BVH_PACKET
+#define SH_T PK_CAT(float, BVH_PACKET)
+#define PK_CAT2(a, b) a##b
+#define PK_CAT(a, b) PK_CAT2(a, b)
+#endif
 #include "sh.clh"
 #include "bvh.clh"
 #include "sampling.clh"
@@ -25,6 +35,8 @@
 #define CHANNELS 1
 #endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
+
+#if !BVH_PACKET
 
 // Direct (bounce 0) transport, one work-item per vertex.
 // vertexCount, sampleCount: V and N
@@ -124,3 +136,84 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
   const float invN = 1.0f / (float)sampleCount;
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
 }
+
+#else  // BVH_PACKET
+
+#include "bvh_packet.clh"
+
+// Packet form of transport_direct: the N samples of a vertex go through the BVH
+// BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
+// dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).
+// Other arguments as transport_direct; outputs identical up to float summation order.
+__kernel void transport_direct_packet(int vertexCount, int sampleCount, __global const float4* origins,
+                                      __global const float4* frames, __global const float* dirsSoA,
+                                      __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                                      __global float* coeffs, __global float* visible, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  floatP acc[SH_COUNT];
+  for (int k = 0; k < SH_COUNT; ++k) acc[k] = (floatP)(0.0f);
+  intP seen = (intP)(0);
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  if (dot(n, n) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    intP lane;
+#if BVH_PACKET == 16
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+#else
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
+#endif
+    for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      intP live = (lane + s) < sampleCount;
+#if VISIBILITY
+      live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
+#endif
+      seen -= live;  // live lanes are −1
+      floatP y[SH_COUNT];
+      sh_eval(SH_ORDER, dx, dy, dz, y);
+      for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
+    }
+  }
+  const float invN = 1.0f / (float)sampleCount;
+  // Fixed-order horizontal sums: deterministic.
+  for (int k = 0; k < SH_COUNT; ++k) {
+    float sum = 0.0f;
+    for (int j = 0; j < BVH_PACKET; ++j) sum += ((float*)&acc[k])[j];
+    coeffs[(size_t)vi * SH_COUNT + k] = sum * invN;
+  }
+  int total = 0;
+  for (int j = 0; j < BVH_PACKET; ++j) total += ((int*)&seen)[j];
+  visible[vi] = (float)total * invN;
+}
+
+// Packet form of transport_visibility (the production visibility, for the tests).
+__kernel void transport_visibility_packet(int vertexCount, int sampleCount, __global const float4* origins,
+                                          __global const float4* frames, __global const float* dirsSoA,
+                                          __global const BvhNode* nodes, __global const float4* tris,
+                                          float tMax, __global uchar* out, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  const float3 o = origins[vi].xyz;
+  for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+    const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+    const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+    const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+    const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+    const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+    const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+    const intP blocked = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, (intP)(-1));
+    for (int j = 0; j < BVH_PACKET && s + j < sampleCount; ++j)
+      out[(size_t)vi * sampleCount + s + j] = ((int*)&blocked)[j] ? 0 : 1;
+  }
+}
+
+#endif  // BVH_PACKET

@@ -22,7 +22,8 @@ constexpr size_t kLocalSize = 16;
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
 struct DeviceScene {
-  cl::Buffer origins, frames, dirs, nodes, tris;
+  cl::Buffer origins, frames, dirs, dirsSoA, nodes, tris;
+  int paddedCount = 0;
   float tMax = 0;
 };
 
@@ -52,6 +53,13 @@ DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, co
   s.origins = upload(rt, setup.origins);
   s.frames = upload(rt, setup.frames);
   s.dirs = upload(rt, setup.dirs);
+  // Structure-of-arrays copy for the packet kernels, padded to a multiple of 16.
+  const int ns = int(setup.dirs.size() / 4);
+  s.paddedCount = (ns + 15) / 16 * 16;
+  std::vector<float> soa(size_t(3) * s.paddedCount, 0.0f);
+  for (int i = 0; i < ns; ++i)
+    for (int c = 0; c < 3; ++c) soa[size_t(c) * s.paddedCount + i] = setup.dirs[4 * size_t(i) + c];
+  s.dirsSoA = upload(rt, soa);
   if (needBvh) {
     const auto t0 = Clock::now();
     const Bvh bvh = buildBvh(mesh);
@@ -74,9 +82,23 @@ DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, co
   return s;
 }
 
-std::string options(int order, bool visibility, int channels) {
+std::string options(int order, bool visibility, int channels, int packet = 0) {
   return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
-         " -DCHANNELS=" + std::to_string(channels);
+         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packet);
+}
+
+// The direct-term (or visibility) kernel: packet or scalar form, arguments set.
+cl::Kernel directKernel(Runtime& rt, const TransportOptions& o, bool visibility, const DeviceScene& s, int nv,
+                        const char* scalarName, const char* packetName) {
+  const bool packet = o.packetWidth > 0;
+  cl::Kernel k = rt.kernel("transport.cl", packet ? packetName : scalarName,
+                           options(o.order, visibility, 1, o.packetWidth));
+  setCommonArgs(k, nv, o.samples, s);
+  if (packet) {
+    k.setArg(4, s.dirsSoA);
+    k.setArg(10, s.paddedCount);
+  }
+  return k;
 }
 
 }  // namespace
@@ -103,8 +125,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   const cl::NDRange global(roundUp(size_t(nv), kLocalSize)), local(kLocalSize);
   cl::Buffer direct(rt.context(), CL_MEM_READ_WRITE, size_t(nv) * nc * 4);
   cl::Buffer visible(rt.context(), CL_MEM_WRITE_ONLY, size_t(nv) * 4);
-  cl::Kernel kd = rt.kernel("transport.cl", "transport_direct", options(o.order, visibility, 1));
-  setCommonArgs(kd, nv, o.samples, scene);
+  cl::Kernel kd = directKernel(rt, o, visibility, scene, nv, "transport_direct", "transport_direct_packet");
   kd.setArg(8, direct);
   kd.setArg(9, visible);
   const auto tKernel = Clock::now();
@@ -189,8 +210,7 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
   DeviceScene scene = prepare(rt, mesh, o, setup, true, r);
   const int nv = int(mesh.vertexCount());
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, std::max<size_t>(size_t(nv) * o.samples, 16));
-  cl::Kernel k = rt.kernel("transport.cl", "transport_visibility", options(o.order, true, 1));
-  setCommonArgs(k, nv, o.samples, scene);
+  cl::Kernel k = directKernel(rt, o, true, scene, nv, "transport_visibility", "transport_visibility_packet");
   k.setArg(8, out);
   rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
                                   cl::NDRange(kLocalSize));

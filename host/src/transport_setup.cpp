@@ -1,6 +1,7 @@
 // Sample directions, per-vertex frames and ray origins (see transport.h, sampling.clh).
 #include "transport_setup.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <tuple>
@@ -58,7 +59,28 @@ std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t s
     const double r = std::sqrt(u1), phi = 2 * kPi * u2;
     out[i] = {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
   }
-  return out;
+  // Order the set along a Morton curve over the projected disk (x, y), so that
+  // consecutive samples (the packets of the vector kernel) point in nearby
+  // directions. The set, and so the estimate, is unchanged up to summation order.
+  auto spread = [](uint32_t v) {
+    uint64_t x = v;
+    x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
+    x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
+    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
+    x = (x | (x << 2)) & 0x3333333333333333ull;
+    x = (x | (x << 1)) & 0x5555555555555555ull;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, size_t>> keys(out.size());
+  for (size_t i = 0; i < out.size(); ++i) {
+    const uint32_t qx = uint32_t(std::min(65535.0, (out[i][0] + 1) * 32768.0));
+    const uint32_t qy = uint32_t(std::min(65535.0, (out[i][1] + 1) * 32768.0));
+    keys[i] = {spread(qx) | (spread(qy) << 1), i};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::array<double, 3>> sorted(out.size());
+  for (size_t i = 0; i < out.size(); ++i) sorted[i] = out[keys[i].second];
+  return sorted;
 }
 
 namespace detail {
@@ -70,6 +92,8 @@ void checkTransportOptions(const TransportOptions& o) {
     throw UsageError("--samples", std::to_string(o.samples) + " is out of range [1, 16777216]");
   if (o.mode == TransportMode::Interreflected && (o.bounces < 1 || o.bounces > 64))
     throw UsageError("--bounces", std::to_string(o.bounces) + " is out of range [1, 64]");
+  if (o.packetWidth != 0 && o.packetWidth != 8 && o.packetWidth != 16)
+    throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0, 8 or 16)");
   if (!(o.bounceTolerance >= 0) || !std::isfinite(o.bounceTolerance))
     throw UsageError("--bounce-tolerance", "must be a finite number ≥ 0");
   if (o.albedoOverride)

@@ -43,6 +43,10 @@ struct TransportOptions {
   double bounceTolerance = 1e-4;
   // Replaces every vertex's albedo (linear RGB) when set.
   std::optional<std::array<float, 3>> albedoOverride;
+  // Rays per packet of the direct-term kernel: 16 or 8 (vector types, one vertex's
+  // rays share an origin), or 0 for the scalar one-ray-at-a-time kernel. The results
+  // agree up to float summation order.
+  int packetWidth = 16;
   // Interreflected only: also return each bounce's T^(k) (TransportResult::bounceCoeffs).
   bool keepBounces = false;
 };
