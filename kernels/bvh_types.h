@@ -7,8 +7,9 @@
 #define PRTBAKE_BVH_TYPES_H
 
 // One node of the flattened, depth-first binary BVH (32 bytes, as pbrt's LinearBVHNode).
-//   inner node: count == 0, the left child is the next node (index + 1) and
-//               `offset` is the index of the right child;
+//   inner node: count = −(1 + split axis) < 0 (0 = x, 1 = y, 2 = z), the left
+//               child (lower coordinates along the axis) is the next node
+//               (index + 1) and `offset` is the index of the right child;
 //   leaf:       count > 0 triangles starting at `offset` in the leaf-ordered
 //               triangle arrays.
 typedef struct {

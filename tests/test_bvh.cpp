@@ -61,7 +61,7 @@ TEST_CASE("BVH: every non-degenerate triangle in exactly one leaf, nested bounds
   CHECK(std::adjacent_find(ids.begin(), ids.end()) == ids.end());
   // Each leaf's box holds its triangles' vertices.
   for (const auto& n : bvh.nodes) {
-    if (n.count == 0) continue;
+    if (n.count <= 0) continue;
     for (int i = n.offset; i < n.offset + n.count; ++i)
       for (int k = 0; k < 3; ++k) {
         const float* p = &m.positions[3 * m.indices[3 * bvh.triangles[i] + k]];

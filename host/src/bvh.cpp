@@ -96,9 +96,12 @@ struct Builder {
     // Leaf when splitting is not cheaper (traversal cost 1, intersection cost 1 per triangle).
     const double leafCost = bounds.area() * count;
     size_t mid;
+    int splitAxis = bestAxis;
     if (bestAxis < 0) {
       if (count <= size_t(kBvhMaxLeaf)) return makeLeaf();
       mid = begin + count / 2;  // all centroids coincide: split by index
+      const float ext[3] = {bounds.hi[0] - bounds.lo[0], bounds.hi[1] - bounds.lo[1], bounds.hi[2] - bounds.lo[2]};
+      splitAxis = ext[0] >= ext[1] && ext[0] >= ext[2] ? 0 : (ext[1] >= ext[2] ? 1 : 2);
     } else {
       if (count <= size_t(kBvhMaxLeaf) && bestCost + bounds.area() >= leafCost) return makeLeaf();
       const float lo = cbounds.lo[bestAxis];
@@ -114,7 +117,7 @@ struct Builder {
     Bvh::Node& n = nodes[index];
     for (int c = 0; c < 3; ++c) n.bmin[c] = bounds.lo[c], n.bmax[c] = bounds.hi[c];
     n.offset = right;
-    n.count = 0;
+    n.count = -(1 + splitAxis);
     return index;
   }
 };

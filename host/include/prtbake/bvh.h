@@ -24,7 +24,7 @@ struct Bvh {
     float bmin[3];
     int32_t offset;  // inner: right child index; leaf: first triangle in leaf order
     float bmax[3];
-    int32_t count;   // 0: inner node; > 0: triangles in the leaf
+    int32_t count;   // > 0: triangles in the leaf; inner node: −(1 + split axis)
   };
   std::vector<Node> nodes;           // nodes[0] is the root
   std::vector<uint32_t> triangles;   // mesh triangle index of each leaf slot
