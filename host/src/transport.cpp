@@ -89,14 +89,14 @@ std::string options(int order, bool visibility, int channels, int packet = 0) {
 
 // The direct-term (or visibility) kernel: packet or scalar form, arguments set.
 cl::Kernel directKernel(Runtime& rt, const TransportOptions& o, bool visibility, const DeviceScene& s, int nv,
-                        const char* scalarName, const char* packetName) {
+                        const char* scalarName, const char* packetName, int paddedCountArg) {
   const bool packet = o.packetWidth > 0;
   cl::Kernel k = rt.kernel("transport.cl", packet ? packetName : scalarName,
                            options(o.order, visibility, 1, o.packetWidth));
   setCommonArgs(k, nv, o.samples, s);
   if (packet) {
     k.setArg(4, s.dirsSoA);
-    k.setArg(10, s.paddedCount);
+    k.setArg(paddedCountArg, s.paddedCount);
   }
   return k;
 }
@@ -125,7 +125,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   const cl::NDRange global(roundUp(size_t(nv), kLocalSize)), local(kLocalSize);
   cl::Buffer direct(rt.context(), CL_MEM_READ_WRITE, size_t(nv) * nc * 4);
   cl::Buffer visible(rt.context(), CL_MEM_WRITE_ONLY, size_t(nv) * 4);
-  cl::Kernel kd = directKernel(rt, o, visibility, scene, nv, "transport_direct", "transport_direct_packet");
+  cl::Kernel kd = directKernel(rt, o, visibility, scene, nv, "transport_direct", "transport_direct_packet", 10);
   kd.setArg(8, direct);
   kd.setArg(9, visible);
   const auto tKernel = Clock::now();
@@ -210,7 +210,7 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
   DeviceScene scene = prepare(rt, mesh, o, setup, true, r);
   const int nv = int(mesh.vertexCount());
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, std::max<size_t>(size_t(nv) * o.samples, 16));
-  cl::Kernel k = directKernel(rt, o, true, scene, nv, "transport_visibility", "transport_visibility_packet");
+  cl::Kernel k = directKernel(rt, o, true, scene, nv, "transport_visibility", "transport_visibility_packet", 9);
   k.setArg(8, out);
   rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
                                   cl::NDRange(kLocalSize));
