@@ -1,8 +1,12 @@
 // prtbake transport: per-vertex PRT transport of a mesh (see prtbake/transport.h).
 #include <cstdio>
+#include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli.h"
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
 #include "prtbake/runtime.h"
@@ -46,11 +50,19 @@ int runTransport(const CommandLine& cl) {
                  std::to_string(o.order) + ", " + std::to_string(o.samples) + " samples");
   Runtime rt(cl.device());
   const TransportResult r = computeTransport(rt, mesh, o);
-  // GAMES202 output first: it refuses coloured transport before anything is written.
-  if (cl.has("games202")) writeGames202Transport(cl.get("games202"), mesh, r);
-  if (cl.has("gltf")) writeTransportGltf(cl.get("gltf"), mesh, r);
-  writeTransportNpy(out, r);
-  writeTransportSidecar(sidecarPath(out), input, mesh, o, r);
+  // Every output is produced, then written to its temp file, before any is renamed
+  // into place: a failure (coloured transport for GAMES202, a full disk) leaves none.
+  std::vector<std::pair<std::string, std::string>> outputs;
+  if (cl.has("games202")) outputs.emplace_back(cl.get("games202"), games202TransportBytes(mesh, r));
+  if (cl.has("gltf")) outputs.emplace_back(cl.get("gltf"), transportGltfBytes(cl.get("gltf"), mesh, r));
+  outputs.emplace_back(out, transportNpyBytes(r));
+  outputs.emplace_back(sidecarPath(out), transportSidecarBytes(input, mesh, o, r));
+  std::vector<std::unique_ptr<AtomicFile>> files;
+  for (const auto& [path, bytes] : outputs) {
+    files.push_back(std::make_unique<AtomicFile>(path));
+    files.back()->write(bytes);
+  }
+  for (auto& f : files) f->commit();
   char line[256];
   std::snprintf(line, sizeof line, "transport: %.3f s (BVH %.3f s), %.3g rays, std. error max %.3g mean %.3g%s",
                 r.totalSeconds, r.bvhSeconds, double(r.rays), r.maxStdError, r.meanStdError,

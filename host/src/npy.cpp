@@ -32,7 +32,7 @@ std::string npyHeader(const std::vector<size_t>& shape) {
 
 }  // namespace
 
-void writeTransportNpy(const std::string& path, const TransportResult& r) {
+std::string transportNpyBytes(const TransportResult& r) {
   static_assert(sizeof(float) == 4, "float32");
   const uint32_t probe = 1;
   char little;
@@ -42,10 +42,13 @@ void writeTransportNpy(const std::string& path, const TransportResult& r) {
   if (r.channels > 1) shape.push_back(size_t(r.channels));
   shape.push_back(size_t(r.order) * r.order);
   PRTBAKE_CHECK(r.coeffs.size() == r.vertexCount * r.channels * r.order * r.order, "coefficient count");
-  AtomicFile f(path);
-  f.write(npyHeader(shape));
-  f.write(r.coeffs.data(), r.coeffs.size() * sizeof(float));
-  f.commit();
+  std::string out = npyHeader(shape);
+  out.append(reinterpret_cast<const char*>(r.coeffs.data()), r.coeffs.size() * sizeof(float));
+  return out;
+}
+
+void writeTransportNpy(const std::string& path, const TransportResult& r) {
+  writeFileAtomic(path, transportNpyBytes(r));
 }
 
 }  // namespace prtbake

@@ -26,7 +26,7 @@ std::string lowerExt(const std::string& path) {
 }
 }  // namespace
 
-void writeGames202Transport(const std::string& path, const Mesh& mesh, const TransportResult& r) {
+std::string games202TransportBytes(const Mesh& mesh, const TransportResult& r) {
   if (r.channels != 1)
     throw UsageError("--games202", "the GAMES202 transport.txt holds grey transport only (the albedo is coloured)");
   const int nc = r.order * r.order;
@@ -44,10 +44,14 @@ void writeGames202Transport(const std::string& path, const Mesh& mesh, const Tra
     }
     out += '\n';
   }
-  writeFileAtomic(path, out);
+  return out;
 }
 
-void writeTransportGltf(const std::string& path, const Mesh& mesh, const TransportResult& r) {
+void writeGames202Transport(const std::string& path, const Mesh& mesh, const TransportResult& r) {
+  writeFileAtomic(path, games202TransportBytes(mesh, r));
+}
+
+std::string transportGltfBytes(const std::string& path, const Mesh& mesh, const TransportResult& r) {
   if (mesh.format != Mesh::Format::Gltf || mesh.sourcePath.empty())
     throw UsageError("--gltf", "a glTF copy needs a glTF input (this mesh is not one)");
   tinygltf::Model model;
@@ -106,11 +110,15 @@ void writeTransportGltf(const std::string& path, const Mesh& mesh, const Transpo
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model, os, !binary, binary))
     throw OutputError(path, "cannot serialise the glTF copy");
-  writeFileAtomic(path, os.str());
+  return os.str();
 }
 
-void writeTransportSidecar(const std::string& path, const std::string& inputPath, const Mesh& mesh,
-                           const TransportOptions& o, const TransportResult& r) {
+void writeTransportGltf(const std::string& path, const Mesh& mesh, const TransportResult& r) {
+  writeFileAtomic(path, transportGltfBytes(path, mesh, r));
+}
+
+std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh, const TransportOptions& o,
+                                  const TransportResult& r) {
   using nlohmann::json;
   json j;
   j["tool"] = {{"name", "prtbake"}, {"version", version()}};
@@ -145,7 +153,12 @@ void writeTransportSidecar(const std::string& path, const std::string& inputPath
                {"bvh_nodes", r.bvhNodes}};
   j["timings_s"] = {{"bvh", r.bvhSeconds}, {"kernels", r.kernelSeconds}, {"total", r.totalSeconds}};
   j["device"] = r.device;
-  writeFileAtomic(path, j.dump(2) + "\n");
+  return j.dump(2) + "\n";
+}
+
+void writeTransportSidecar(const std::string& path, const std::string& inputPath, const Mesh& mesh,
+                           const TransportOptions& o, const TransportResult& r) {
+  writeFileAtomic(path, transportSidecarBytes(inputPath, mesh, o, r));
 }
 
 }  // namespace prtbake

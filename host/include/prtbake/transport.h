@@ -100,6 +100,13 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
 std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed);
 
 // --- outputs (all atomic: a failure leaves no file) ---
+// Each write* function has a *Bytes twin that returns the file's contents, so that a
+// caller writing several outputs can produce them all before committing any.
+std::string transportNpyBytes(const TransportResult& result);
+std::string games202TransportBytes(const Mesh& mesh, const TransportResult& result);
+std::string transportGltfBytes(const std::string& path, const Mesh& mesh, const TransportResult& result);
+std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh, const TransportOptions& options,
+                                  const TransportResult& result);
 
 // NumPy .npy, float32, shape [V, n²] or [V, 3, n²].
 void writeTransportNpy(const std::string& path, const TransportResult& result);
