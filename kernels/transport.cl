@@ -216,4 +216,64 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
   }
 }
 
+// Packet form of transport_bounce: closest hits BVH_PACKET at a time, then the
+// gather of ρ(q) T^(k)(q) lane by lane (random access). Arguments as transport_bounce,
+// with dirsSoA and paddedCount as in transport_direct_packet.
+__kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global const float4* origins,
+                                      __global const float4* frames, __global const float* dirsSoA,
+                                      __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                                      __global const int4* indices, __global const float4* albedo,
+                                      __global const float* prev, __global float* next, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  float acc[CHANNELS * SH_COUNT];
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  if (dot(n, n) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    intP lane;
+#if BVH_PACKET == 16
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+#else
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
+#endif
+    for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      const intP live = (lane + s) < sampleCount;
+      intP hitTri;
+      floatP hitU, hitV;
+      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &hitTri, &hitU, &hitV);
+      for (int j = 0; j < BVH_PACKET; ++j) {
+        const int tri = ((int*)&hitTri)[j];
+        if (tri < 0) continue;
+        float u = fmax(((float*)&hitU)[j], 0.0f);
+        float v = fmax(((float*)&hitV)[j], 0.0f);
+        float w = fmax(1.0f - u - v, 0.0f);
+        const float sum = u + v + w;
+        u /= sum, v /= sum, w /= sum;
+        const int4 idx = indices[tri];
+        const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
+        __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
+        __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
+        __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
+        for (int c = 0; c < CHANNELS; ++c) {
+          const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
+          for (int k = 0; k < SH_COUNT; ++k) {
+            const int m = c * SH_COUNT + k;
+            acc[m] += r * (w * t0[m] + u * t1[m] + v * t2[m]);
+          }
+        }
+      }
+    }
+  }
+  const float invN = 1.0f / (float)sampleCount;
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
+}
+
 #endif  // BVH_PACKET

@@ -168,8 +168,14 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     cl::Buffer prevBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
     cl::Buffer nextBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
     q.enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
-    cl::Kernel kb = rt.kernel("transport.cl", "transport_bounce", options(o.order, true, ch));
+    const bool packet = o.packetWidth > 0;
+    cl::Kernel kb = rt.kernel("transport.cl", packet ? "transport_bounce_packet" : "transport_bounce",
+                              options(o.order, true, ch, o.packetWidth));
     setCommonArgs(kb, nv, o.samples, scene);
+    if (packet) {
+      kb.setArg(4, scene.dirsSoA);
+      kb.setArg(12, scene.paddedCount);
+    }
     kb.setArg(8, idxBuf);
     kb.setArg(9, albedoBuf);
     std::vector<float> next(prev.size());
