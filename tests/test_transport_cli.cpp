@@ -77,6 +77,25 @@ TEST_CASE("CLI transport: Box.glb to .npy, sidecar and glTF copy", "[transport][
   CHECK(again.vertexCount() == 24);
 }
 
+TEST_CASE("CLI transport: .gltf with an external .bin to a .gltf copy with embedded buffers", "[transport][cli][data]") {
+  const std::string sphere = test::dataFile("meshes/gltf/AnimatedMorphSphere.gltf");
+  PRTBAKE_SKIP_IF_NO_DATA(sphere);
+  const std::string dir = test::tempDir("cli-gltf");
+  const auto r = test::runCli("transport '" + sphere + "' -o '" + dir + "/s.npy' --samples 32 --order 2 --gltf '" +
+                              dir + "/copy.gltf' --quiet");
+  INFO(r.output);
+  REQUIRE(r.exitCode == 0);
+  const auto j = nlohmann::json::parse(readFile(dir + "/copy.gltf"));
+  for (const auto& b : j["buffers"]) CHECK(b["uri"].get<std::string>().rfind("data:", 0) == 0);
+  const auto& prim = j["meshes"][0]["primitives"][0];
+  CHECK(prim["attributes"].contains("_PRT_T0"));
+  CHECK_FALSE(prim["attributes"].contains("_PRT_T1"));  // order 2: 4 coefficients, one VEC4
+  CHECK(prim.contains("targets"));                      // morph targets survive the copy
+  const Mesh original = loadMesh(sphere), copy = loadMesh(dir + "/copy.gltf");
+  CHECK(copy.vertexCount() == original.vertexCount());
+  CHECK(copy.positions == original.positions);
+}
+
 TEST_CASE("CLI transport: GAMES202 export on mary.obj in the framework's units", "[transport][cli][data]") {
   const std::string mary = test::dataFile("meshes/obj/mary.obj");
   PRTBAKE_SKIP_IF_NO_DATA(mary);
