@@ -1,0 +1,42 @@
+// prtbake/bvh.h: the bounding volume hierarchy the transport kernels traverse.
+//
+// Built on the host with the surface area heuristic over binned centroids
+// (kBvhBins bins per axis, leaves of at most kBvhMaxLeaf triangles), then
+// flattened depth-first: the left child of an inner node is the next node, the
+// right child is `offset` (pbrt's LinearBVHNode layout, 32 bytes). Zero-area
+// triangles cannot occlude and are left out. The node layout is the POD struct
+// of kernels/bvh_types.h; Bvh::Node mirrors it (checked by static_assert).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "prtbake/mesh.h"
+
+namespace prtbake {
+
+constexpr int kBvhBins = 16;
+constexpr int kBvhMaxLeaf = 4;
+constexpr int kBvhMaxDepth = 60;  // the kernels' traversal stack holds 64 entries
+
+struct Bvh {
+  struct Node {
+    float bmin[3];
+    int32_t offset;  // inner: right child index; leaf: first triangle in leaf order
+    float bmax[3];
+    int32_t count;   // > 0: triangles in the leaf; inner node: −(1 + split axis)
+  };
+  std::vector<Node> nodes;           // nodes[0] is the root
+  std::vector<uint32_t> triangles;   // mesh triangle index of each leaf slot
+  // Leaf-ordered triangles packed for the kernels: 12 floats per triangle,
+  // (v0, id-as-int-bits), (v1 − v0, 0), (v2 − v0, 0).
+  std::vector<float> packed;
+  int depth = 0;
+  size_t degenerateTriangles = 0;   // zero-area triangles left out
+};
+
+// Builds the BVH of the mesh's triangles. An empty result (no node) means every
+// triangle has zero area.
+Bvh buildBvh(const Mesh& mesh);
+
+}  // namespace prtbake

@@ -1,0 +1,83 @@
+// prtbake/mesh.h: triangle meshes for the transport product.
+//
+// A Mesh is an indexed triangle list in the input's world frame (DESIGN.md, "World
+// frame"): glTF node transforms are applied (normals by the inverse transpose), OBJ
+// is taken as is. Per vertex: position, shading normal (unit, or zero where none
+// could be defined), and linear albedo ρ (RGB; grey when r = g = b).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace prtbake {
+
+struct Mesh {
+  std::vector<float> positions;  // 3 per vertex, world frame
+  std::vector<float> normals;    // 3 per vertex, unit (zero: no normal; transport is zero there)
+  std::vector<float> albedo;     // 3 per vertex, linear RGB in [0, 1]
+  std::vector<uint32_t> indices; // 3 per triangle, counter-clockwise front faces
+
+  // Where each glTF primitive instance's vertices live in this mesh (for the glTF
+  // export): vertices [firstVertex, firstVertex + vertexCount) are the primitive's
+  // accessor vertices 0..vertexCount-1 under node `node`.
+  struct GltfPrimitive {
+    int node = -1, mesh = -1, primitive = -1;
+    uint32_t firstVertex = 0, vertexCount = 0;
+  };
+  std::vector<GltfPrimitive> gltfPrimitives;
+  std::string sourcePath;  // the file it was loaded from ("" for procedural meshes)
+  enum class Format { None, Gltf, Obj } format = Format::None;
+
+  size_t vertexCount() const { return positions.size() / 3; }
+  size_t triangleCount() const { return indices.size() / 3; }
+  // True when every vertex has r = g = b (the transport stays scalar).
+  bool greyAlbedo() const;
+};
+
+// Loads a .gltf/.glb (tinygltf) or .obj (tinyobjloader) by its extension, fills
+// missing normals and validates. Throws InputError(path, what) for missing,
+// malformed, empty or non-finite input.
+Mesh loadMesh(const std::string& path);
+
+// glTF 2.0: every triangle primitive (triangles, strips, fans; indexed or not) of the
+// default scene (or of every root node when there is no scene), node transforms
+// applied; NORMAL, else area- and angle-weighted normals; albedo = baseColorFactor ×
+// COLOR_0 (RGB). Points and lines are ignored.
+Mesh loadGltf(const std::string& path);
+// OBJ: polygons triangulated; one mesh vertex per distinct (v, vt, vn) triple, as the
+// GAMES202 framework's loader does; albedo 1 (OBJ materials are not read).
+Mesh loadObj(const std::string& path);
+
+// Replaces zero-length or absent normals with the area- and angle-weighted mean of
+// the normals of the triangles that use the vertex. Vertices used only by
+// zero-area triangles keep a zero normal.
+void fillMissingNormals(Mesh& mesh);
+
+// Throws InputError(subject, ...) for an empty mesh (no triangles), out-of-range
+// indices, non-finite positions/normals/albedo, or size mismatches.
+void validateMesh(const Mesh& mesh, const std::string& subject);
+
+// Axis-aligned bounds of the positions used by triangles: min[3], max[3].
+void meshBounds(const Mesh& mesh, double bmin[3], double bmax[3]);
+
+// --- procedural meshes for tests and benchmarks (unit albedo, outward normals) ---
+
+// A UV sphere of radius r: `rings` latitude bands × `segments` longitudes, poles
+// included, radial normals, shared vertices (closed and convex).
+Mesh makeUvSphere(double radius, int rings, int segments);
+// An axis-aligned square [−h, h]² in the plane z = height, normal ±z (down = true: −z),
+// split into n × n quads.
+Mesh makeSquare(double halfSize, double height, int n, bool facingDown);
+// A sphere of radius r whose cap around +z (polar angle < openingRad) is cut away;
+// normals point inwards (the cavity's interior is its front side).
+Mesh makeOpenSphereCavity(double radius, double openingRad, int rings, int segments);
+// A bumpy, self-occluding closed shape with about `targetTriangles` triangles (a sphere
+// displaced by a sum of sinusoids), for benchmarks.
+Mesh makeBumpySphere(int targetTriangles);
+// Appends `b` to `a` (indices offset).
+void appendMesh(Mesh& a, const Mesh& b);
+// Scales positions by s about the origin (normals unchanged).
+void scaleMesh(Mesh& mesh, double s);
+
+}  // namespace prtbake

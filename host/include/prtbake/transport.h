@@ -1,0 +1,129 @@
+// prtbake/transport.h: per-vertex PRT transport in SH (DESIGN.md, "Transport").
+//
+// For vertex p with unit normal n and SH order N (N² coefficients, index l(l+1)+m):
+//   T_i(p) = (1/π) ∫ V(p, ω) max(0, n·ω) Y_i(ω) dω           (shadowed)
+// Unshadowed drops V. Interreflected adds bounces
+//   T^(k+1)(p) = (1/π) ∫_{ray p→q hits} ρ(q) T^(k)(q) max(0, n·ω) dω,   T = Σ_{k=0..B} T^(k),
+// computed bounce by bounce over all vertices (cost linear in B), T^(k)(q) interpolated
+// with barycentrics. Units: an unoccluded vertex under a constant white environment
+// (L = 1 everywhere, l_0 = √(4π)) gives Σ l_i T_i = 1; the runtime shades
+// L_o = ρ(p) Σ_i l_i T_i. The GAMES202 framework's units are π × these.
+//
+// Estimator: N cosine-distributed low-discrepancy directions per vertex (a shifted
+// Hammersley set, rotated about n by a per-vertex angle; see kernels/sampling.clh):
+//   T_i(p) ≈ (1/N) Σ_s V(p, ω_s) Y_i(ω_s).
+// Shadow rays start at p + ε n_g (n_g: the area-weighted geometric normal at p,
+// ε = 1e-4 × the scene's bounding-box diagonal + 1e-6 × its largest coordinate).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
+
+namespace prtbake {
+
+enum class TransportMode { Unshadowed, Shadowed, Interreflected };
+const char* transportModeName(TransportMode mode);
+// "unshadowed" | "shadowed" | "interreflected"; throws UsageError otherwise.
+TransportMode parseTransportMode(const std::string& name);
+
+struct TransportOptions {
+  TransportMode mode = TransportMode::Shadowed;
+  int order = 3;            // SH order 1..kMaxTransportOrder
+  int samples = 1024;       // directions per vertex (and per bounce)
+  uint64_t seed = 0;        // selects the direction set and the per-vertex rotations
+  int bounces = 3;          // interreflected only: the most bounces B ≥ 1
+  // Interreflected only: stop after a bounce whose largest per-vertex coefficient
+  // norm max_p |T^(k)(p)| is below this (0: always do B bounces).
+  double bounceTolerance = 1e-4;
+  // Replaces every vertex's albedo (linear RGB) when set.
+  std::optional<std::array<float, 3>> albedoOverride;
+  // Rays per packet of the direct-term kernel: 16 or 8 (vector types, one vertex's
+  // rays share an origin), or 0 for the scalar one-ray-at-a-time kernel. The results
+  // agree up to float summation order.
+  int packetWidth = 16;
+  // Interreflected only: also return each bounce's T^(k) (TransportResult::bounceCoeffs).
+  bool keepBounces = false;
+};
+
+// Orders accepted by the transport product.
+constexpr int kMaxTransportOrder = 8;
+
+struct TransportResult {
+  int order = 0;
+  int channels = 1;          // 1 (grey albedo) or 3 (coloured albedo, interreflected)
+  size_t vertexCount = 0;
+  std::vector<float> coeffs; // vertexCount × channels × order², vertex-major
+  // Per-vertex standard error of the direct term (L2 norm over the coefficients),
+  // for independent samples: √((N²/(4π)·v − |T|²)/N_s) with v the unoccluded
+  // fraction (Σ_i Y_i² = N²/(4π)); low-discrepancy sampling usually does better.
+  std::vector<float> stdError;
+  double maxStdError = 0, meanStdError = 0;
+  int bouncesUsed = 0;                 // interreflected: bounces computed
+  std::vector<double> bounceMaxNorm;   // max_p |T^(k)(p)| for k = 1..bouncesUsed
+  // T^(0), T^(1), ... (same layout as coeffs) when TransportOptions::keepBounces is set.
+  std::vector<std::vector<float>> bounceCoeffs;
+  uint64_t rays = 0;                   // rays traced (0 when unshadowed)
+  int samples = 0;
+  double bvhSeconds = 0, kernelSeconds = 0, totalSeconds = 0;
+  size_t bvhNodes = 0, degenerateTriangles = 0, verticesWithoutNormal = 0;
+  std::string device;
+
+  const float* vertex(size_t v) const { return coeffs.data() + v * size_t(channels) * order * order; }
+};
+
+// Computes the transport of every vertex of `mesh` on the runtime's device.
+// Throws UsageError for bad options, InputError for an unusable mesh.
+TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& options);
+
+// Double-precision CPU reference with the same directions and ray origins, by brute
+// force over all triangles (small meshes only). Optionally returns the visibility of
+// every (vertex, sample) ray and the distance of each blocking hit to its triangle's
+// nearest edge in barycentric units.
+struct ReferenceRays {
+  std::vector<uint8_t> visible;     // vertexCount × samples
+  std::vector<double> edgeDistance; // vertexCount × samples; 1 where no hit is near an edge
+};
+TransportResult computeTransportReference(const Mesh& mesh, const TransportOptions& options,
+                                          ReferenceRays* rays = nullptr);
+
+// The kernel's per-ray visibility (vertexCount × samples bytes, 1 = unoccluded).
+std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& options);
+
+// The sample set: `samples` local directions (x, y, z; z along the normal),
+// cosine-distributed, for `seed`.
+std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed);
+
+// --- outputs (all atomic: a failure leaves no file) ---
+// Each write* function has a *Bytes twin that returns the file's contents, so that a
+// caller writing several outputs can produce them all before committing any.
+std::string transportNpyBytes(const TransportResult& result);
+std::string games202TransportBytes(const Mesh& mesh, const TransportResult& result);
+std::string transportGltfBytes(const std::string& path, const Mesh& mesh, const TransportResult& result);
+std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh, const TransportOptions& options,
+                                  const TransportResult& result);
+
+// NumPy .npy, float32, shape [V, n²] or [V, 3, n²].
+void writeTransportNpy(const std::string& path, const TransportResult& result);
+// GAMES202 transport.txt: the vertex count, then one line of n² numbers per
+// triangle corner in face order, in the framework's units (×π); single spaces,
+// no trailing space, a final newline. Grey transport only (RGB: channel-mean is
+// not meaningful, so it throws UsageError).
+void writeGames202Transport(const std::string& path, const Mesh& mesh, const TransportResult& result);
+// A copy of the input glTF (mesh.sourcePath) with VEC4 float attributes _PRT_T0,
+// _PRT_T1, … (coefficients 4k..4k+3, zero-padded) on every primitive; RGB
+// transport gets _PRT_R*, _PRT_G*, _PRT_B*. .glb output is binary, .gltf embeds
+// its buffers. A primitive instanced by several nodes carries the first instance's
+// transport.
+void writeTransportGltf(const std::string& path, const Mesh& mesh, const TransportResult& result);
+// The JSON sidecar: version, parameters, input SHA-256, conventions, sample counts,
+// error summary, bounces, timings and device.
+void writeTransportSidecar(const std::string& path, const std::string& inputPath, const Mesh& mesh,
+                           const TransportOptions& options, const TransportResult& result);
+
+}  // namespace prtbake

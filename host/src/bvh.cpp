@@ -1,0 +1,173 @@
+// Binned-SAH BVH build, flattened depth-first (see prtbake/bvh.h).
+#include "prtbake/bvh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+
+#include "bvh_types.h"
+
+namespace prtbake {
+
+static_assert(sizeof(BvhNode) == 32, "BvhNode must be 32 bytes on the host and the device");
+static_assert(sizeof(Bvh::Node) == sizeof(BvhNode), "Bvh::Node mirrors BvhNode");
+static_assert(offsetof(Bvh::Node, offset) == offsetof(BvhNode, offset), "Bvh::Node mirrors BvhNode");
+static_assert(offsetof(Bvh::Node, count) == offsetof(BvhNode, count), "Bvh::Node mirrors BvhNode");
+static_assert(BVH_TRI_FLOAT4S == 3, "packed triangles are three float4");
+
+namespace {
+
+struct Box {
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  void grow(const float* p) {
+    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], p[c]), hi[c] = std::max(hi[c], p[c]);
+  }
+  void grow(const Box& b) {
+    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], b.lo[c]), hi[c] = std::max(hi[c], b.hi[c]);
+  }
+  double area() const {
+    if (lo[0] > hi[0]) return 0;
+    const double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+    return 2 * (dx * dy + dy * dz + dz * dx);
+  }
+};
+
+struct Prim {
+  Box box;
+  float centroid[3];
+  uint32_t tri;
+};
+
+struct Builder {
+  std::vector<Prim>& prims;
+  std::vector<Bvh::Node>& nodes;
+  int depth = 0;
+
+  int build(size_t begin, size_t end, int level) {
+    depth = std::max(depth, level);
+    const int index = int(nodes.size());
+    nodes.emplace_back();
+    Box bounds, cbounds;
+    for (size_t i = begin; i < end; ++i) bounds.grow(prims[i].box), cbounds.grow(prims[i].centroid);
+    auto makeLeaf = [&]() {
+      Bvh::Node& n = nodes[index];
+      for (int c = 0; c < 3; ++c) n.bmin[c] = bounds.lo[c], n.bmax[c] = bounds.hi[c];
+      n.offset = int32_t(begin);
+      n.count = int32_t(end - begin);
+      return index;
+    };
+    const size_t count = end - begin;
+    if (count <= 1 || level >= kBvhMaxDepth) return makeLeaf();
+    // Binned SAH over the axis of largest centroid extent (all three tried).
+    double bestCost = INFINITY;
+    int bestAxis = -1, bestSplit = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      const float lo = cbounds.lo[axis], hi = cbounds.hi[axis];
+      if (!(hi > lo)) continue;
+      Box binBox[kBvhBins];
+      size_t binCount[kBvhBins] = {};
+      const double scale = kBvhBins / double(hi - lo);
+      for (size_t i = begin; i < end; ++i) {
+        const int b = std::min(kBvhBins - 1, int((prims[i].centroid[axis] - lo) * scale));
+        binBox[b].grow(prims[i].box);
+        ++binCount[b];
+      }
+      double rightArea[kBvhBins];
+      size_t rightCount[kBvhBins];
+      Box acc;
+      size_t cnt = 0;
+      for (int b = kBvhBins - 1; b > 0; --b) {
+        acc.grow(binBox[b]);
+        cnt += binCount[b];
+        rightArea[b] = acc.area();
+        rightCount[b] = cnt;
+      }
+      Box left;
+      size_t leftCount = 0;
+      for (int b = 0; b < kBvhBins - 1; ++b) {
+        left.grow(binBox[b]);
+        leftCount += binCount[b];
+        if (leftCount == 0 || rightCount[b + 1] == 0) continue;
+        const double cost = left.area() * leftCount + rightArea[b + 1] * rightCount[b + 1];
+        if (cost < bestCost) bestCost = cost, bestAxis = axis, bestSplit = b;
+      }
+    }
+    // Leaf when splitting is not cheaper (traversal cost 1, intersection cost 1 per triangle).
+    const double leafCost = bounds.area() * count;
+    size_t mid;
+    int splitAxis = bestAxis;
+    if (bestAxis < 0) {
+      if (count <= size_t(kBvhMaxLeaf)) return makeLeaf();
+      mid = begin + count / 2;  // all centroids coincide: split by index
+      const float ext[3] = {bounds.hi[0] - bounds.lo[0], bounds.hi[1] - bounds.lo[1], bounds.hi[2] - bounds.lo[2]};
+      splitAxis = ext[0] >= ext[1] && ext[0] >= ext[2] ? 0 : (ext[1] >= ext[2] ? 1 : 2);
+    } else {
+      if (count <= size_t(kBvhMaxLeaf) && bestCost + bounds.area() >= leafCost) return makeLeaf();
+      const float lo = cbounds.lo[bestAxis];
+      const double scale = kBvhBins / double(cbounds.hi[bestAxis] - lo);
+      auto it = std::partition(prims.begin() + begin, prims.begin() + end, [&](const Prim& p) {
+        return std::min(kBvhBins - 1, int((p.centroid[bestAxis] - lo) * scale)) <= bestSplit;
+      });
+      mid = size_t(it - prims.begin());
+      if (mid == begin || mid == end) mid = begin + count / 2;
+    }
+    build(begin, mid, level + 1);
+    const int right = build(mid, end, level + 1);
+    Bvh::Node& n = nodes[index];
+    for (int c = 0; c < 3; ++c) n.bmin[c] = bounds.lo[c], n.bmax[c] = bounds.hi[c];
+    n.offset = right;
+    n.count = -(1 + splitAxis);
+    return index;
+  }
+};
+
+}  // namespace
+
+Bvh buildBvh(const Mesh& mesh) {
+  Bvh bvh;
+  std::vector<Prim> prims;
+  prims.reserve(mesh.triangleCount());
+  const float* p = mesh.positions.data();
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const float* v[3] = {p + 3 * size_t(mesh.indices[3 * t]), p + 3 * size_t(mesh.indices[3 * t + 1]),
+                         p + 3 * size_t(mesh.indices[3 * t + 2])};
+    // Zero area in the float arithmetic the kernel uses: it can never be hit.
+    float e1[3], e2[3];
+    for (int c = 0; c < 3; ++c) e1[c] = v[1][c] - v[0][c], e2[c] = v[2][c] - v[0][c];
+    const float cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+                cz = e1[0] * e2[1] - e1[1] * e2[0];
+    if (cx == 0 && cy == 0 && cz == 0) {
+      ++bvh.degenerateTriangles;
+      continue;
+    }
+    Prim pr;
+    for (int k = 0; k < 3; ++k) pr.box.grow(v[k]);
+    for (int c = 0; c < 3; ++c) pr.centroid[c] = (pr.box.lo[c] + pr.box.hi[c]) * 0.5f;
+    pr.tri = uint32_t(t);
+    prims.push_back(pr);
+  }
+  if (prims.empty()) return bvh;
+  bvh.nodes.reserve(2 * prims.size() / kBvhMaxLeaf + 2);
+  Builder b{prims, bvh.nodes};
+  b.build(0, prims.size(), 0);
+  bvh.depth = b.depth;
+  bvh.triangles.resize(prims.size());
+  bvh.packed.resize(prims.size() * 12);
+  for (size_t i = 0; i < prims.size(); ++i) {
+    const uint32_t t = prims[i].tri;
+    bvh.triangles[i] = t;
+    const float* v0 = p + 3 * size_t(mesh.indices[3 * t]);
+    const float* v1 = p + 3 * size_t(mesh.indices[3 * t + 1]);
+    const float* v2 = p + 3 * size_t(mesh.indices[3 * t + 2]);
+    float* o = &bvh.packed[12 * i];
+    const int32_t id = int32_t(t);
+    o[0] = v0[0], o[1] = v0[1], o[2] = v0[2];
+    std::memcpy(&o[3], &id, 4);
+    for (int c = 0; c < 3; ++c) o[4 + c] = v1[c] - v0[c], o[8 + c] = v2[c] - v0[c];
+    o[7] = o[11] = 0.0f;
+  }
+  return bvh;
+}
+
+}  // namespace prtbake

@@ -1,0 +1,261 @@
+// glTF 2.0 loader (tinygltf): every triangle primitive of the default scene in world space.
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <functional>
+
+#include "gltf_common.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/mesh.h"
+
+namespace prtbake {
+namespace detail {
+namespace {
+bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
+               void*) {
+  return true;  // images are not needed for transport and are passed through untouched
+}
+}  // namespace
+
+void loadGltfModel(const std::string& path, tinygltf::Model& model) {
+  const std::string bytes = readFile(path);
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(skipImage, nullptr);
+  std::string err, warn;
+  const size_t slash = path.find_last_of('/');
+  const std::string baseDir = slash == std::string::npos ? "." : path.substr(0, slash);
+  bool ok;
+  if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0)
+    ok = loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                     unsigned(bytes.size()), baseDir);
+  else
+    ok = loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir);
+  if (!ok) {
+    while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
+    throw InputError(path, "not a valid glTF 2.0 file: " + (err.empty() ? std::string("parse error") : err));
+  }
+}
+
+std::vector<int> gltfRootNodes(const tinygltf::Model& model) {
+  if (!model.scenes.empty()) {
+    const int s = model.defaultScene >= 0 && model.defaultScene < int(model.scenes.size()) ? model.defaultScene : 0;
+    return model.scenes[s].nodes;
+  }
+  std::vector<char> isChild(model.nodes.size(), 0);
+  for (const auto& n : model.nodes)
+    for (int c : n.children)
+      if (c >= 0 && c < int(isChild.size())) isChild[c] = 1;
+  std::vector<int> roots;
+  for (size_t i = 0; i < model.nodes.size(); ++i)
+    if (!isChild[i]) roots.push_back(int(i));
+  return roots;
+}
+
+}  // namespace detail
+
+namespace {
+using Mat4 = std::array<double, 16>;  // column-major, as glTF
+
+Mat4 identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
+
+Mat4 mul(const Mat4& a, const Mat4& b) {
+  Mat4 r{};
+  for (int c = 0; c < 4; ++c)
+    for (int rr = 0; rr < 4; ++rr) {
+      double s = 0;
+      for (int k = 0; k < 4; ++k) s += a[k * 4 + rr] * b[c * 4 + k];
+      r[c * 4 + rr] = s;
+    }
+  return r;
+}
+
+Mat4 nodeMatrix(const tinygltf::Node& n) {
+  if (n.matrix.size() == 16) {
+    Mat4 m;
+    for (int i = 0; i < 16; ++i) m[i] = n.matrix[i];
+    return m;
+  }
+  Mat4 t = identity(), r = identity(), s = identity();
+  if (n.translation.size() == 3) t[12] = n.translation[0], t[13] = n.translation[1], t[14] = n.translation[2];
+  if (n.scale.size() == 3) s[0] = n.scale[0], s[5] = n.scale[1], s[10] = n.scale[2];
+  if (n.rotation.size() == 4) {
+    double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
+    const double len = std::sqrt(x * x + y * y + z * z + w * w);
+    if (len > 0) x /= len, y /= len, z /= len, w /= len;
+    r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
+         2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),     0,
+         2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
+         0, 0, 0, 1};
+  }
+  return mul(t, mul(r, s));
+}
+
+// Reads `comps` components per element of an accessor as doubles (normalised
+// integers mapped to [0, 1] or [−1, 1]). Throws InputError for truncated data.
+std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
+                                 const std::string& what) {
+  if (index < 0 || index >= int(model.accessors.size()))
+    throw InputError(path, what + ": accessor " + std::to_string(index) + " does not exist");
+  const auto& acc = model.accessors[index];
+  const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+  if (ncomp < comps) throw InputError(path, what + ": accessor " + std::to_string(index) + " has too few components");
+  const int csize = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+  if (csize <= 0) throw InputError(path, what + ": unsupported component type");
+  std::vector<double> out(acc.count * size_t(comps), 0.0);
+  if (acc.bufferView < 0) return out;  // all zeros (sparse accessors are not read)
+  if (acc.bufferView >= int(model.bufferViews.size()))
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " does not exist");
+  const auto& view = model.bufferViews[acc.bufferView];
+  if (view.buffer < 0 || view.buffer >= int(model.buffers.size()))
+    throw InputError(path, what + ": buffer " + std::to_string(view.buffer) + " does not exist");
+  const auto& buf = model.buffers[view.buffer].data;
+  const size_t stride = view.byteStride ? view.byteStride : size_t(ncomp) * csize;
+  const size_t start = view.byteOffset + acc.byteOffset;
+  if (acc.count > 0) {
+    const size_t last = start + (acc.count - 1) * stride + size_t(ncomp) * csize;
+    if (last > buf.size() || acc.byteOffset + (acc.count - 1) * stride + size_t(ncomp) * csize > view.byteLength)
+      throw InputError(path, what + ": accessor " + std::to_string(index) + " runs past the end of its buffer (truncated file?)");
+  }
+  for (size_t i = 0; i < acc.count; ++i) {
+    const unsigned char* e = buf.data() + start + i * stride;
+    for (int c = 0; c < comps; ++c) {
+      const unsigned char* p = e + size_t(c) * csize;
+      double v = 0;
+      switch (acc.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
+        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); v = d; break; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = *p; if (acc.normalized) v /= 255.0; break;
+        case TINYGLTF_COMPONENT_TYPE_BYTE: v = *reinterpret_cast<const signed char*>(p); if (acc.normalized) v = std::max(v / 127.0, -1.0); break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t u; std::memcpy(&u, p, 2); v = u; if (acc.normalized) v /= 65535.0; break; }
+        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t s; std::memcpy(&s, p, 2); v = s; if (acc.normalized) v = std::max(v / 32767.0, -1.0); break; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t u; std::memcpy(&u, p, 4); v = u; break; }
+        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t s; std::memcpy(&s, p, 4); v = s; break; }
+        default: throw InputError(path, what + ": unsupported component type");
+      }
+      out[i * comps + c] = v;
+    }
+  }
+  return out;
+}
+
+void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, int primIndex, const Mat4& world,
+                  const std::string& path, Mesh& mesh) {
+  const auto& prim = model.meshes[meshIndex].primitives[primIndex];
+  const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+  if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+    return;
+  const std::string what = "mesh " + std::to_string(meshIndex) + " primitive " + std::to_string(primIndex);
+  auto pos = prim.attributes.find("POSITION");
+  if (pos == prim.attributes.end()) throw InputError(path, what + " has no POSITION attribute");
+  const std::vector<double> p = readAccessor(model, pos->second, 3, path, what + " POSITION");
+  const size_t nv = p.size() / 3;
+  std::vector<double> n;
+  if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end())
+    n = readAccessor(model, it->second, 3, path, what + " NORMAL");
+  std::vector<double> col;
+  if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
+    col = readAccessor(model, it->second, 3, path, what + " COLOR_0");
+  std::array<double, 3> base{1, 1, 1};
+  if (prim.material >= 0 && prim.material < int(model.materials.size())) {
+    const auto& f = model.materials[prim.material].pbrMetallicRoughness.baseColorFactor;
+    if (f.size() >= 3) base = {f[0], f[1], f[2]};
+  }
+  // Corner list of the primitive (indexed or not), before strip/fan conversion.
+  std::vector<uint32_t> corners;
+  if (prim.indices >= 0) {
+    const std::vector<double> idx = readAccessor(model, prim.indices, 1, path, what + " indices");
+    corners.reserve(idx.size());
+    for (double v : idx) {
+      if (v < 0 || v >= double(nv))
+        throw InputError(path, what + ": index " + std::to_string(uint64_t(v)) + " is out of range (" +
+                                   std::to_string(nv) + " vertices)");
+      corners.push_back(uint32_t(v));
+    }
+  } else {
+    for (size_t i = 0; i < nv; ++i) corners.push_back(uint32_t(i));
+  }
+  std::vector<uint32_t> tris;
+  if (mode == TINYGLTF_MODE_TRIANGLES) {
+    for (size_t i = 0; i + 2 < corners.size(); i += 3) tris.insert(tris.end(), {corners[i], corners[i + 1], corners[i + 2]});
+  } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+    // glTF: triangle i = (i, i+1, i+2) for even i, (i+1, i, i+2) for odd i.
+    for (size_t i = 0; i + 2 < corners.size(); ++i) {
+      if (i % 2 == 0)
+        tris.insert(tris.end(), {corners[i], corners[i + 1], corners[i + 2]});
+      else
+        tris.insert(tris.end(), {corners[i + 1], corners[i], corners[i + 2]});
+    }
+  } else {
+    // glTF: triangle i = (i+1, i+2, 0).
+    for (size_t i = 0; i + 2 < corners.size(); ++i) tris.insert(tris.end(), {corners[i + 1], corners[i + 2], corners[0]});
+  }
+  // World transform; normals by the inverse transpose of the upper 3×3; a mirroring
+  // transform (negative determinant) flips the winding.
+  const double* m = world.data();
+  const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], k = m[10];
+  const double det = a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g);
+  // Cofactor matrix = det × inverse transpose (the scale of det does not matter: renormalised).
+  const double cof[9] = {e * k - f * h, -(d * k - f * g), d * h - e * g,
+                         -(b * k - c * h), a * k - c * g, -(a * h - b * g),
+                         b * f - c * e, -(a * f - c * d), a * e - b * d};
+  const double sgn = det < 0 ? -1.0 : 1.0;
+  const uint32_t first = uint32_t(mesh.vertexCount());
+  for (size_t i = 0; i < nv; ++i) {
+    const double x = p[3 * i], y = p[3 * i + 1], z = p[3 * i + 2];
+    mesh.positions.push_back(float(m[0] * x + m[4] * y + m[8] * z + m[12]));
+    mesh.positions.push_back(float(m[1] * x + m[5] * y + m[9] * z + m[13]));
+    mesh.positions.push_back(float(m[2] * x + m[6] * y + m[10] * z + m[14]));
+    double w[3] = {0, 0, 0};
+    if (!n.empty()) {
+      const double nx = n[3 * i], ny = n[3 * i + 1], nz = n[3 * i + 2];
+      // row r of cofactor · n
+      w[0] = sgn * (cof[0] * nx + cof[1] * ny + cof[2] * nz);
+      w[1] = sgn * (cof[3] * nx + cof[4] * ny + cof[5] * nz);
+      w[2] = sgn * (cof[6] * nx + cof[7] * ny + cof[8] * nz);
+      const double len = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+      if (len > 1e-12 && std::isfinite(len))
+        for (double& q : w) q /= len;
+      else
+        w[0] = w[1] = w[2] = 0;  // zero-length or non-finite: recomputed by fillMissingNormals
+    }
+    for (double q : w) mesh.normals.push_back(float(q));
+    for (int ch = 0; ch < 3; ++ch) mesh.albedo.push_back(float(base[ch] * (col.empty() ? 1.0 : col[3 * i + ch])));
+  }
+  for (size_t t = 0; t + 2 < tris.size(); t += 3) {
+    if (det < 0)
+      mesh.indices.insert(mesh.indices.end(), {first + tris[t], first + tris[t + 2], first + tris[t + 1]});
+    else
+      mesh.indices.insert(mesh.indices.end(), {first + tris[t], first + tris[t + 1], first + tris[t + 2]});
+  }
+  mesh.gltfPrimitives.push_back({nodeIndex, meshIndex, primIndex, first, uint32_t(nv)});
+}
+
+}  // namespace
+
+Mesh loadGltf(const std::string& path) {
+  tinygltf::Model model;
+  detail::loadGltfModel(path, model);
+  Mesh mesh;
+  mesh.sourcePath = path;
+  mesh.format = Mesh::Format::Gltf;
+  std::vector<char> onPath(model.nodes.size(), 0);
+  std::function<void(int, const Mat4&)> walk = [&](int ni, const Mat4& parent) {
+    if (ni < 0 || ni >= int(model.nodes.size())) throw InputError(path, "node " + std::to_string(ni) + " does not exist");
+    if (onPath[ni]) throw InputError(path, "the node hierarchy has a cycle at node " + std::to_string(ni));
+    onPath[ni] = 1;
+    const auto& node = model.nodes[ni];
+    const Mat4 world = mul(parent, nodeMatrix(node));
+    if (node.mesh >= 0) {
+      if (node.mesh >= int(model.meshes.size())) throw InputError(path, "mesh " + std::to_string(node.mesh) + " does not exist");
+      for (size_t pi = 0; pi < model.meshes[node.mesh].primitives.size(); ++pi)
+        addPrimitive(model, ni, node.mesh, int(pi), world, path, mesh);
+    }
+    for (int c : node.children) walk(c, world);
+    onPath[ni] = 0;
+  };
+  for (int r : detail::gltfRootNodes(model)) walk(r, identity());
+  return mesh;
+}
+
+}  // namespace prtbake

@@ -1,0 +1,228 @@
+// Transport on the OpenCL device: BVH upload, direct term, bounces (see transport.h).
+#include "prtbake/transport.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "prtbake/bvh.h"
+#include "prtbake/error.h"
+#include "prtbake/sh.h"
+#include "transport_setup.h"
+
+namespace prtbake {
+namespace {
+const double kPi = 3.14159265358979323846;
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
+// scalar; 16 keeps the groups numerous enough to balance over the cores.
+constexpr size_t kLocalSize = 16;
+
+size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
+
+struct DeviceScene {
+  cl::Buffer origins, frames, dirs, dirsSoA, nodes, tris;
+  int paddedCount = 0;
+  float tMax = 0;
+};
+
+void setCommonArgs(cl::Kernel& k, int nv, int ns, const DeviceScene& s) {
+  k.setArg(0, nv);
+  k.setArg(1, ns);
+  k.setArg(2, s.origins);
+  k.setArg(3, s.frames);
+  k.setArg(4, s.dirs);
+  k.setArg(5, s.nodes);
+  k.setArg(6, s.tris);
+  k.setArg(7, s.tMax);
+}
+
+template <class T>
+cl::Buffer upload(Runtime& rt, const std::vector<T>& v) {
+  const size_t bytes = std::max<size_t>(v.size() * sizeof(T), 16);
+  cl::Buffer b(rt.context(), CL_MEM_READ_ONLY, bytes);
+  if (!v.empty()) rt.queue().enqueueWriteBuffer(b, CL_TRUE, 0, v.size() * sizeof(T), v.data());
+  return b;
+}
+
+DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup,
+                    bool needBvh, TransportResult& r) {
+  DeviceScene s;
+  s.tMax = setup.tMax;
+  s.origins = upload(rt, setup.origins);
+  s.frames = upload(rt, setup.frames);
+  s.dirs = upload(rt, setup.dirs);
+  // Structure-of-arrays copy for the packet kernels, padded to a multiple of 16.
+  const int ns = int(setup.dirs.size() / 4);
+  s.paddedCount = (ns + 15) / 16 * 16;
+  std::vector<float> soa(size_t(3) * s.paddedCount, 0.0f);
+  for (int i = 0; i < ns; ++i)
+    for (int c = 0; c < 3; ++c) soa[size_t(c) * s.paddedCount + i] = setup.dirs[4 * size_t(i) + c];
+  s.dirsSoA = upload(rt, soa);
+  if (needBvh) {
+    const auto t0 = Clock::now();
+    const Bvh bvh = buildBvh(mesh);
+    r.bvhSeconds = since(t0);
+    r.bvhNodes = bvh.nodes.size();
+    r.degenerateTriangles = bvh.degenerateTriangles;
+    s.nodes = upload(rt, bvh.nodes);
+    s.tris = upload(rt, bvh.packed);
+    if (bvh.nodes.empty()) {
+      // Every triangle has zero area: nothing can occlude. One leaf whose empty box
+      // (min > max) no ray enters.
+      const std::vector<Bvh::Node> one{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}};
+      s.nodes = upload(rt, one);
+      s.tris = upload(rt, std::vector<float>(12, 0.0f));
+    }
+  } else {
+    s.nodes = upload(rt, std::vector<float>(8, 0.0f));
+    s.tris = upload(rt, std::vector<float>(12, 0.0f));
+  }
+  return s;
+}
+
+std::string options(int order, bool visibility, int channels, int packet = 0) {
+  return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
+         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packet);
+}
+
+// The direct-term (or visibility) kernel: packet or scalar form, arguments set.
+cl::Kernel directKernel(Runtime& rt, const TransportOptions& o, bool visibility, const DeviceScene& s, int nv,
+                        const char* scalarName, const char* packetName, int paddedCountArg) {
+  const bool packet = o.packetWidth > 0;
+  cl::Kernel k = rt.kernel("transport.cl", packet ? packetName : scalarName,
+                           options(o.order, visibility, 1, o.packetWidth));
+  setCommonArgs(k, nv, o.samples, s);
+  if (packet) {
+    k.setArg(4, s.dirsSoA);
+    k.setArg(paddedCountArg, s.paddedCount);
+  }
+  return k;
+}
+
+}  // namespace
+
+TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
+  const auto tStart = Clock::now();
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  TransportResult r;
+  r.order = o.order;
+  r.samples = o.samples;
+  r.vertexCount = mesh.vertexCount();
+  r.device = rt.deviceLabel();
+  const int nc = o.order * o.order;
+  const int nv = int(mesh.vertexCount());
+  const bool rgb = detail::transportIsRgb(mesh, o);
+  r.channels = rgb ? 3 : 1;
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  r.verticesWithoutNormal = setup.verticesWithoutNormal;
+  const bool visibility = o.mode != TransportMode::Unshadowed;
+  DeviceScene scene = prepare(rt, mesh, o, setup, visibility, r);
+
+  auto& q = rt.queue();
+  const cl::NDRange global(roundUp(size_t(nv), kLocalSize)), local(kLocalSize);
+  cl::Buffer direct(rt.context(), CL_MEM_READ_WRITE, size_t(nv) * nc * 4);
+  cl::Buffer visible(rt.context(), CL_MEM_WRITE_ONLY, size_t(nv) * 4);
+  cl::Kernel kd = directKernel(rt, o, visibility, scene, nv, "transport_direct", "transport_direct_packet", 10);
+  kd.setArg(8, direct);
+  kd.setArg(9, visible);
+  const auto tKernel = Clock::now();
+  q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
+  std::vector<float> t0(size_t(nv) * nc), vis(static_cast<size_t>(nv));
+  q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
+  q.enqueueReadBuffer(visible, CL_TRUE, 0, vis.size() * 4, vis.data());
+  if (visibility) r.rays += uint64_t(nv) * uint64_t(o.samples);
+
+  // Standard error of the direct term (see transport.h).
+  r.stdError.assign(size_t(nv), 0.0f);
+  double sumErr = 0;
+  for (int v = 0; v < nv; ++v) {
+    double norm2 = 0;
+    for (int k = 0; k < nc; ++k) norm2 += double(t0[size_t(v) * nc + k]) * t0[size_t(v) * nc + k];
+    const double var = nc / (4 * kPi) * vis[v] - norm2;
+    const double se = std::sqrt(std::max(0.0, var) / o.samples);
+    r.stdError[v] = float(se);
+    r.maxStdError = std::max(r.maxStdError, se);
+    sumErr += se;
+  }
+  r.meanStdError = nv ? sumErr / nv : 0;
+
+  if (o.mode != TransportMode::Interreflected) {
+    r.coeffs = std::move(t0);
+  } else {
+    const int ch = r.channels, stride = ch * nc;
+    std::vector<float> prev(size_t(nv) * stride);
+    for (int v = 0; v < nv; ++v)
+      for (int c = 0; c < ch; ++c)
+        for (int k = 0; k < nc; ++k) prev[size_t(v) * stride + c * nc + k] = t0[size_t(v) * nc + k];
+    std::vector<double> total(prev.begin(), prev.end());
+    if (o.keepBounces) r.bounceCoeffs.push_back(prev);
+    // Triangle indices and albedo for the gather.
+    std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
+    for (size_t t = 0; t < mesh.triangleCount(); ++t)
+      for (int k = 0; k < 3; ++k) idx[4 * t + k] = int32_t(mesh.indices[3 * t + k]);
+    cl::Buffer idxBuf = upload(rt, idx);
+    cl::Buffer albedoBuf = upload(rt, detail::vertexAlbedo(mesh, o));
+    cl::Buffer prevBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
+    cl::Buffer nextBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
+    q.enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
+    const bool packet = o.packetWidth > 0;
+    cl::Kernel kb = rt.kernel("transport.cl", packet ? "transport_bounce_packet" : "transport_bounce",
+                              options(o.order, true, ch, o.packetWidth));
+    setCommonArgs(kb, nv, o.samples, scene);
+    if (packet) {
+      kb.setArg(4, scene.dirsSoA);
+      kb.setArg(12, scene.paddedCount);
+    }
+    kb.setArg(8, idxBuf);
+    kb.setArg(9, albedoBuf);
+    std::vector<float> next(prev.size());
+    for (int b = 1; b <= o.bounces; ++b) {
+      kb.setArg(10, prevBuf);
+      kb.setArg(11, nextBuf);
+      q.enqueueNDRangeKernel(kb, cl::NullRange, global, local);
+      q.enqueueReadBuffer(nextBuf, CL_TRUE, 0, next.size() * 4, next.data());
+      r.rays += uint64_t(nv) * uint64_t(o.samples);
+      double maxNorm = 0;
+      for (int v = 0; v < nv; ++v) {
+        double n2 = 0;
+        for (int k = 0; k < stride; ++k) {
+          const double x = next[size_t(v) * stride + k];
+          n2 += x * x;
+          total[size_t(v) * stride + k] += x;
+        }
+        maxNorm = std::max(maxNorm, std::sqrt(n2));
+      }
+      r.bounceMaxNorm.push_back(maxNorm);
+      r.bouncesUsed = b;
+      if (o.keepBounces) r.bounceCoeffs.push_back(next);
+      if (maxNorm < o.bounceTolerance) break;
+      std::swap(prevBuf, nextBuf);
+    }
+    r.coeffs.assign(total.begin(), total.end());
+  }
+  r.kernelSeconds = since(tKernel);
+  r.totalSeconds = since(tStart);
+  return r;
+}
+
+std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  TransportResult r;
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  DeviceScene scene = prepare(rt, mesh, o, setup, true, r);
+  const int nv = int(mesh.vertexCount());
+  cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, std::max<size_t>(size_t(nv) * o.samples, 16));
+  cl::Kernel k = directKernel(rt, o, true, scene, nv, "transport_visibility", "transport_visibility_packet", 9);
+  k.setArg(8, out);
+  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
+                                  cl::NDRange(kLocalSize));
+  std::vector<uint8_t> vis(size_t(nv) * o.samples);
+  rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, vis.size(), vis.data());
+  return vis;
+}
+
+}  // namespace prtbake

@@ -1,0 +1,195 @@
+// Sample directions, per-vertex frames and ray origins (see transport.h, sampling.clh).
+#include "transport_setup.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <tuple>
+
+#include "prtbake/error.h"
+#include "prtbake/sh.h"
+
+namespace prtbake {
+namespace {
+const double kPi = 3.14159265358979323846;
+
+uint64_t splitmix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+double unitFromBits(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }
+
+double radicalInverse2(uint32_t i) {
+  i = (i << 16) | (i >> 16);
+  i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
+  i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
+  i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
+  i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
+  return double(i) * 0x1.0p-32;
+}
+}  // namespace
+
+const char* transportModeName(TransportMode mode) {
+  switch (mode) {
+    case TransportMode::Unshadowed: return "unshadowed";
+    case TransportMode::Shadowed: return "shadowed";
+    case TransportMode::Interreflected: return "interreflected";
+  }
+  return "?";
+}
+
+TransportMode parseTransportMode(const std::string& name) {
+  if (name == "unshadowed") return TransportMode::Unshadowed;
+  if (name == "shadowed") return TransportMode::Shadowed;
+  if (name == "interreflected") return TransportMode::Interreflected;
+  throw UsageError("--mode", "unknown mode '" + name + "' (expected unshadowed|shadowed|interreflected)");
+}
+
+std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed) {
+  // Hammersley (u1 stratified, u2 the base-2 radical inverse) with a Cranley–Patterson
+  // shift from the seed, mapped to the cosine-weighted hemisphere:
+  //   r = √u1, φ = 2π u2, ω = (r cos φ, r sin φ, √(1 − u1)),  pdf = cos θ / π.
+  const double s1 = unitFromBits(splitmix64(seed * 2 + 1)), s2 = unitFromBits(splitmix64(seed * 2 + 2));
+  std::vector<std::array<double, 3>> out(size_t(std::max(samples, 0)));
+  for (int i = 0; i < samples; ++i) {
+    double u1 = (i + 0.5) / samples + s1, u2 = radicalInverse2(uint32_t(i)) + s2;
+    u1 -= std::floor(u1), u2 -= std::floor(u2);
+    const double r = std::sqrt(u1), phi = 2 * kPi * u2;
+    out[i] = {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
+  }
+  // Order the set along a Morton curve over the projected disk (x, y), so that
+  // consecutive samples (the packets of the vector kernel) point in nearby
+  // directions. The set, and so the estimate, is unchanged up to summation order.
+  auto spread = [](uint32_t v) {
+    uint64_t x = v;
+    x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
+    x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
+    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
+    x = (x | (x << 2)) & 0x3333333333333333ull;
+    x = (x | (x << 1)) & 0x5555555555555555ull;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, size_t>> keys(out.size());
+  for (size_t i = 0; i < out.size(); ++i) {
+    const uint32_t qx = uint32_t(std::min(65535.0, (out[i][0] + 1) * 32768.0));
+    const uint32_t qy = uint32_t(std::min(65535.0, (out[i][1] + 1) * 32768.0));
+    keys[i] = {spread(qx) | (spread(qy) << 1), i};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::array<double, 3>> sorted(out.size());
+  for (size_t i = 0; i < out.size(); ++i) sorted[i] = out[keys[i].second];
+  return sorted;
+}
+
+namespace detail {
+
+void checkTransportOptions(const TransportOptions& o) {
+  if (o.order < 1 || o.order > kMaxTransportOrder)
+    throw UsageError("--order", std::to_string(o.order) + " is out of range [1, " + std::to_string(kMaxTransportOrder) + "]");
+  if (o.samples < 1 || o.samples > (1 << 24))
+    throw UsageError("--samples", std::to_string(o.samples) + " is out of range [1, 16777216]");
+  if (o.mode == TransportMode::Interreflected && (o.bounces < 1 || o.bounces > 64))
+    throw UsageError("--bounces", std::to_string(o.bounces) + " is out of range [1, 64]");
+  if (o.packetWidth != 0 && o.packetWidth != 8 && o.packetWidth != 16)
+    throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0, 8 or 16)");
+  if (!(o.bounceTolerance >= 0) || !std::isfinite(o.bounceTolerance))
+    throw UsageError("--bounce-tolerance", "must be a finite number ≥ 0");
+  if (o.albedoOverride)
+    for (float a : *o.albedoOverride)
+      if (!(a >= 0 && a <= 1)) throw UsageError("--albedo", "albedo must lie in [0, 1]");
+}
+
+std::vector<float> vertexAlbedo(const Mesh& mesh, const TransportOptions& o) {
+  std::vector<float> a(mesh.vertexCount() * 4, 0.0f);
+  for (size_t v = 0; v < mesh.vertexCount(); ++v)
+    for (int c = 0; c < 3; ++c) a[4 * v + c] = o.albedoOverride ? (*o.albedoOverride)[c] : mesh.albedo[3 * v + c];
+  return a;
+}
+
+bool transportIsRgb(const Mesh& mesh, const TransportOptions& o) {
+  if (o.mode != TransportMode::Interreflected) return false;
+  if (o.albedoOverride) {
+    const auto& a = *o.albedoOverride;
+    return !(a[0] == a[1] && a[0] == a[2]);
+  }
+  return !mesh.greyAlbedo();
+}
+
+RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o) {
+  RaySetup s;
+  const size_t nv = mesh.vertexCount();
+  double bmin[3], bmax[3];
+  meshBounds(mesh, bmin, bmax);
+  double diag2 = 0, maxAbs = 0;
+  for (int c = 0; c < 3; ++c) {
+    diag2 += (bmax[c] - bmin[c]) * (bmax[c] - bmin[c]);
+    maxAbs = std::max({maxAbs, std::abs(bmin[c]), std::abs(bmax[c])});
+  }
+  const double diag = std::sqrt(diag2);
+  // Scale-relative offset; the second term keeps it above float spacing (~6e-8 × |p|)
+  // for scenes far from the origin.
+  s.epsilon = 1e-4 * diag + 1e-6 * maxAbs;
+  s.tMax = float(4 * diag + 4 * s.epsilon);
+  // Geometric normal per position (welded by exact coordinates): the area-weighted sum
+  // of the face normals of every triangle touching that position.
+  std::map<std::tuple<float, float, float>, std::array<double, 3>> geo;
+  const auto& p = mesh.positions;
+  auto key = [&](uint32_t v) { return std::make_tuple(p[3 * v], p[3 * v + 1], p[3 * v + 2]); };
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1], i2 = mesh.indices[3 * t + 2];
+    double e1[3], e2[3];
+    for (int c = 0; c < 3; ++c) e1[c] = double(p[3 * i1 + c]) - p[3 * i0 + c], e2[c] = double(p[3 * i2 + c]) - p[3 * i0 + c];
+    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    for (uint32_t v : {i0, i1, i2}) {
+      auto& g = geo[key(v)];
+      for (int c = 0; c < 3; ++c) g[c] += n[c];
+    }
+  }
+  const auto dirs = sampleDirectionsLocal(o.samples, o.seed);
+  s.dirs.resize(dirs.size() * 4);
+  for (size_t i = 0; i < dirs.size(); ++i)
+    for (int c = 0; c < 3; ++c) s.dirs[4 * i + c] = float(dirs[i][c]);
+  s.origins.assign(nv * 4, 0.0f);
+  s.frames.assign(nv * 12, 0.0f);
+  for (size_t v = 0; v < nv; ++v) {
+    double n[3] = {mesh.normals[3 * v], mesh.normals[3 * v + 1], mesh.normals[3 * v + 2]};
+    const double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    std::array<double, 3> g{0, 0, 0};
+    if (auto it = geo.find(key(uint32_t(v))); it != geo.end()) g = it->second;
+    double glen = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if (!(nlen > 0)) {
+      ++s.verticesWithoutNormal;
+      for (int c = 0; c < 3; ++c) s.origins[4 * v + c] = p[3 * v + c];
+      continue;
+    }
+    for (double& c : n) c /= nlen;
+    // Offset along the geometric normal, turned to the side of the shading normal
+    // (so that a flipped winding does not bury the origin).
+    if (glen > 0) {
+      for (double& c : g) c /= glen;
+      if (g[0] * n[0] + g[1] * n[1] + g[2] * n[2] < 0)
+        for (double& c : g) c = -c;
+    } else {
+      g = {n[0], n[1], n[2]};
+    }
+    for (int c = 0; c < 3; ++c) s.origins[4 * v + c] = float(p[3 * v + c] + s.epsilon * g[c]);
+    // Orthonormal basis (Duff et al. 2017), then rotated about n by a per-vertex angle.
+    const double sign = std::copysign(1.0, n[2]);
+    const double a = -1.0 / (sign + n[2]), b = n[0] * n[1] * a;
+    const double t0[3] = {1 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]};
+    const double b0[3] = {b, sign + n[1] * n[1] * a, -n[1]};
+    const double phi = 2 * kPi * unitFromBits(splitmix64(o.seed ^ (0xD1B54A32D192ED03ull * (v + 1))));
+    const double cp = std::cos(phi), sp = std::sin(phi);
+    for (int c = 0; c < 3; ++c) {
+      s.frames[12 * v + c] = float(cp * t0[c] + sp * b0[c]);
+      s.frames[12 * v + 4 + c] = float(-sp * t0[c] + cp * b0[c]);
+      s.frames[12 * v + 8 + c] = float(n[c]);
+    }
+  }
+  return s;
+}
+
+}  // namespace detail
+}  // namespace prtbake

@@ -1,0 +1,28 @@
+// bvh_types.h: POD structs shared by the host (C++) and the kernels (OpenCL C).
+//
+// No float3 (16 bytes on the device, 12 on the host): every vector is spelled out
+// as scalars or packed into float4 by the code that uploads it. The host checks the
+// sizes with static_assert (host/src/bvh.cpp).
+#ifndef PRTBAKE_BVH_TYPES_H
+#define PRTBAKE_BVH_TYPES_H
+
+// One node of the flattened, depth-first binary BVH (32 bytes, as pbrt's LinearBVHNode).
+//   inner node: count = −(1 + split axis) < 0 (0 = x, 1 = y, 2 = z), the left
+//               child (lower coordinates along the axis) is the next node
+//               (index + 1) and `offset` is the index of the right child;
+//   leaf:       count > 0 triangles starting at `offset` in the leaf-ordered
+//               triangle arrays.
+typedef struct {
+  float minX, minY, minZ;
+  int offset;
+  float maxX, maxY, maxZ;
+  int count;
+} BvhNode;
+
+// Triangles in leaf order, for the Möller–Trumbore test: three float4 per
+// triangle, (v0, id), (e1 = v1 - v0, 0), (e2 = v2 - v0, 0), where `id` is the
+// index of the triangle in the mesh, stored bit-for-bit as an int (as_int on
+// the device, memcpy on the host).
+#define BVH_TRI_FLOAT4S 3
+
+#endif

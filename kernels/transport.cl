@@ -1,0 +1,279 @@
+// transport.cl: per-vertex PRT transport in SH (see DESIGN.md, "Transport").
+//
+// For a vertex p with normal n,
+//   T_i(p) = (1/π) ∫ V(p, ω) max(0, n·ω) Y_i(ω) dω.
+// With N directions ω_s drawn with pdf cos θ/π over the hemisphere of n (sampling.clh)
+// the 1/π and the cosine cancel against the pdf:
+//   T_i(p) ≈ (1/N) Σ_s V(p, ω_s) Y_i(ω_s).
+// Interreflection, bounce k → k+1 (ρ the albedo at the hit point q, T^(k)(q)
+// interpolated with barycentrics):
+//   T^(k+1)(p) = (1/π) ∫ ρ(q) T^(k)(q) max(0, n·ω) dω ≈ (1/N) Σ_{s hits q_s} ρ(q_s) T^(k)(q_s).
+//
+// Build options: SH_ORDER (1..8 or more), VISIBILITY (0: unshadowed, no BVH access;
+// 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only), BVH_PACKET (0: the
+// scalar kernels below; 8 or 16: only the packet kernels at the end of this file,
+// which evaluate SH on float8/float16 directions).
+#ifndef BVH_PACKET
+#define BVH_PACKET 0
+#endif
+#if BVH_PACKET
+#define SH_T PK_CAT(float, BVH_PACKET)
+#define PK_CAT2(a, b) a##b
+#define PK_CAT(a, b) PK_CAT2(a, b)
+#endif
+#include "sh.clh"
+#include "bvh.clh"
+#include "sampling.clh"
+
+#ifndef SH_ORDER
+#define SH_ORDER 3
+#endif
+#ifndef VISIBILITY
+#define VISIBILITY 1
+#endif
+#ifndef CHANNELS
+#define CHANNELS 1
+#endif
+#define SH_COUNT (SH_ORDER * SH_ORDER)
+
+#if !BVH_PACKET
+
+// Direct (bounce 0) transport, one work-item per vertex.
+// vertexCount, sampleCount: V and N
+// origins:  V × (x, y, z, 0), ray origins already offset along the geometric normal
+// frames:   V × 3 float4 (t, b, n); n = 0 marks a vertex without a normal (zero output)
+// dirs:     N × (x, y, z, 0) local cosine-distributed directions
+// nodes, tris: the BVH (unused when VISIBILITY is 0)
+// tMax:     ray length (beyond the scene's bounding box)
+// coeffs:   V × SH_COUNT output, vertex-major
+// visible:  V output, the fraction of unoccluded directions (for the error estimate)
+__kernel void transport_direct(int vertexCount, int sampleCount, __global const float4* origins,
+                               __global const float4* frames, __global const float4* dirs,
+                               __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                               __global float* coeffs, __global float* visible) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  float acc[SH_COUNT];
+  for (int k = 0; k < SH_COUNT; ++k) acc[k] = 0.0f;
+  int seen = 0;
+  if (dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    for (int s = 0; s < sampleCount; ++s) {
+      const float3 d = sampling_to_world(frame, dirs[s]);
+#if VISIBILITY
+      if (bvh_occluded(nodes, tris, o, d, tMax)) continue;
+#endif
+      ++seen;
+      float y[SH_COUNT];
+      sh_eval(SH_ORDER, d.x, d.y, d.z, y);
+      for (int k = 0; k < SH_COUNT; ++k) acc[k] += y[k];
+    }
+  }
+  const float invN = 1.0f / (float)sampleCount;
+  for (int k = 0; k < SH_COUNT; ++k) coeffs[(size_t)vi * SH_COUNT + k] = acc[k] * invN;
+  visible[vi] = (float)seen * invN;
+}
+
+// Visibility of every (vertex, sample) ray, for the kernel-vs-reference tests.
+// out: V × N bytes, 1 = unoccluded.
+__kernel void transport_visibility(int vertexCount, int sampleCount, __global const float4* origins,
+                                   __global const float4* frames, __global const float4* dirs,
+                                   __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                                   __global uchar* out) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  const float3 o = origins[vi].xyz;
+  for (int s = 0; s < sampleCount; ++s) {
+    const float3 d = sampling_to_world(frame, dirs[s]);
+    out[(size_t)vi * sampleCount + s] = bvh_occluded(nodes, tris, o, d, tMax) ? 0 : 1;
+  }
+}
+
+// One interreflection bounce, one work-item per vertex.
+// indices: T × (i0, i1, i2, 0) vertex indices of every mesh triangle
+// albedo:  V × (r, g, b, 0) linear albedo (CHANNELS = 1 reads r)
+// prev:    V × CHANNELS × SH_COUNT, the previous bounce T^(k)
+// next:    V × CHANNELS × SH_COUNT output, T^(k+1)
+__kernel void transport_bounce(int vertexCount, int sampleCount, __global const float4* origins,
+                               __global const float4* frames, __global const float4* dirs,
+                               __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                               __global const int4* indices, __global const float4* albedo,
+                               __global const float* prev, __global float* next) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  float acc[CHANNELS * SH_COUNT];
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
+  if (dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    for (int s = 0; s < sampleCount; ++s) {
+      const float3 d = sampling_to_world(frame, dirs[s]);
+      float u = 0.0f, v = 0.0f;
+      const int tri = bvh_closest(nodes, tris, o, d, tMax, &u, &v);
+      if (tri < 0) continue;
+      // Barycentrics may stray by BVH_EDGE_EPS outside the triangle: clamp and renormalise.
+      u = fmax(u, 0.0f);
+      v = fmax(v, 0.0f);
+      float w = fmax(1.0f - u - v, 0.0f);
+      const float sum = u + v + w;
+      u /= sum, v /= sum, w /= sum;
+      const int4 idx = indices[tri];
+      const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
+      __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
+      __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
+      __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
+      for (int c = 0; c < CHANNELS; ++c) {
+        const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
+        for (int k = 0; k < SH_COUNT; ++k) {
+          const int j = c * SH_COUNT + k;
+          acc[j] += r * (w * t0[j] + u * t1[j] + v * t2[j]);
+        }
+      }
+    }
+  }
+  const float invN = 1.0f / (float)sampleCount;
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
+}
+
+#else  // BVH_PACKET
+
+#include "bvh_packet.clh"
+
+// Packet form of transport_direct: the N samples of a vertex go through the BVH
+// BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
+// dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).
+// Other arguments as transport_direct; outputs identical up to float summation order.
+__kernel void transport_direct_packet(int vertexCount, int sampleCount, __global const float4* origins,
+                                      __global const float4* frames, __global const float* dirsSoA,
+                                      __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                                      __global float* coeffs, __global float* visible, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  floatP acc[SH_COUNT];
+  for (int k = 0; k < SH_COUNT; ++k) acc[k] = (floatP)(0.0f);
+  intP seen = (intP)(0);
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  if (dot(n, n) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    intP lane;
+#if BVH_PACKET == 16
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+#else
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
+#endif
+    for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      intP live = (lane + s) < sampleCount;
+#if VISIBILITY
+      live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
+#endif
+      seen -= live;  // live lanes are −1
+      floatP y[SH_COUNT];
+      sh_eval(SH_ORDER, dx, dy, dz, y);
+      for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
+    }
+  }
+  const float invN = 1.0f / (float)sampleCount;
+  // Fixed-order horizontal sums: deterministic.
+  for (int k = 0; k < SH_COUNT; ++k) {
+    float sum = 0.0f;
+    for (int j = 0; j < BVH_PACKET; ++j) sum += ((float*)&acc[k])[j];
+    coeffs[(size_t)vi * SH_COUNT + k] = sum * invN;
+  }
+  int total = 0;
+  for (int j = 0; j < BVH_PACKET; ++j) total += ((int*)&seen)[j];
+  visible[vi] = (float)total * invN;
+}
+
+// Packet form of transport_visibility (the production visibility, for the tests).
+__kernel void transport_visibility_packet(int vertexCount, int sampleCount, __global const float4* origins,
+                                          __global const float4* frames, __global const float* dirsSoA,
+                                          __global const BvhNode* nodes, __global const float4* tris,
+                                          float tMax, __global uchar* out, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  const float3 o = origins[vi].xyz;
+  for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+    const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+    const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+    const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+    const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+    const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+    const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+    const intP blocked = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, (intP)(-1));
+    for (int j = 0; j < BVH_PACKET && s + j < sampleCount; ++j)
+      out[(size_t)vi * sampleCount + s + j] = ((int*)&blocked)[j] ? 0 : 1;
+  }
+}
+
+// Packet form of transport_bounce: closest hits BVH_PACKET at a time, then the
+// gather of ρ(q) T^(k)(q) lane by lane (random access). Arguments as transport_bounce,
+// with dirsSoA and paddedCount as in transport_direct_packet.
+__kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global const float4* origins,
+                                      __global const float4* frames, __global const float* dirsSoA,
+                                      __global const BvhNode* nodes, __global const float4* tris, float tMax,
+                                      __global const int4* indices, __global const float4* albedo,
+                                      __global const float* prev, __global float* next, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  float acc[CHANNELS * SH_COUNT];
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  if (dot(n, n) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    intP lane;
+#if BVH_PACKET == 16
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+#else
+    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
+#endif
+    for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      const intP live = (lane + s) < sampleCount;
+      intP hitTri;
+      floatP hitU, hitV;
+      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &hitTri, &hitU, &hitV);
+      for (int j = 0; j < BVH_PACKET; ++j) {
+        const int tri = ((int*)&hitTri)[j];
+        if (tri < 0) continue;
+        float u = fmax(((float*)&hitU)[j], 0.0f);
+        float v = fmax(((float*)&hitV)[j], 0.0f);
+        float w = fmax(1.0f - u - v, 0.0f);
+        const float sum = u + v + w;
+        u /= sum, v /= sum, w /= sum;
+        const int4 idx = indices[tri];
+        const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
+        __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
+        __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
+        __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
+        for (int c = 0; c < CHANNELS; ++c) {
+          const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
+          for (int k = 0; k < SH_COUNT; ++k) {
+            const int m = c * SH_COUNT + k;
+            acc[m] += r * (w * t0[m] + u * t1[m] + v * t2[m]);
+          }
+        }
+      }
+    }
+  }
+  const float invN = 1.0f / (float)sampleCount;
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
+}
+
+#endif  // BVH_PACKET

@@ -1,0 +1,95 @@
+// prtbake transport: per-vertex PRT transport of a mesh (see prtbake/transport.h).
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cli.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
+#include "prtbake/sh.h"
+#include "prtbake/transport.h"
+
+namespace prtbake::cli {
+namespace {
+
+std::string sidecarPath(const std::string& npy) {
+  const size_t slash = npy.find_last_of('/');
+  const size_t dot = npy.find_last_of('.');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) return npy.substr(0, dot) + ".json";
+  return npy + ".json";
+}
+
+int runTransport(const CommandLine& cl) {
+  const std::string input = cl.positional.at(0);
+  const std::string out = cl.get("output");
+  if (out.empty()) throw UsageError("transport", "missing -o OUT.npy");
+  TransportOptions o;
+  o.mode = parseTransportMode(cl.get("mode", "shadowed"));
+  o.order = int(cl.getInt("order", 3, 1, kMaxTransportOrder));
+  o.samples = int(cl.getInt("samples", 1024, 1, 1 << 24));
+  o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
+  o.bounces = int(cl.getInt("bounces", 3, 1, 64));
+  o.bounceTolerance = cl.getDouble("bounce-tolerance", 1e-4, 0, 1e30);
+  if (cl.has("albedo")) {
+    const double a = cl.getDouble("albedo", 1, 0, 1);
+    o.albedoOverride = std::array<float, 3>{float(a), float(a), float(a)};
+  }
+  if (cl.has("bounces") && o.mode != TransportMode::Interreflected)
+    throw UsageError("--bounces", "only applies to --mode interreflected");
+  if (cl.has("gltf") && !(input.size() > 5 && (input.substr(input.size() - 5) == ".gltf" ||
+                                                input.substr(input.size() - 4) == ".glb")))
+    throw UsageError("--gltf", "a glTF copy needs a glTF input (" + input + " is not .gltf/.glb)");
+
+  Mesh mesh = loadMesh(input);
+  status(cl, "transport: " + input + ": " + std::to_string(mesh.vertexCount()) + " vertices, " +
+                 std::to_string(mesh.triangleCount()) + " triangles, " + transportModeName(o.mode) + ", order " +
+                 std::to_string(o.order) + ", " + std::to_string(o.samples) + " samples");
+  Runtime rt(cl.device());
+  const TransportResult r = computeTransport(rt, mesh, o);
+  // Every output is produced, then written to its temp file, before any is renamed
+  // into place: a failure (coloured transport for GAMES202, a full disk) leaves none.
+  std::vector<std::pair<std::string, std::string>> outputs;
+  if (cl.has("games202")) outputs.emplace_back(cl.get("games202"), games202TransportBytes(mesh, r));
+  if (cl.has("gltf")) outputs.emplace_back(cl.get("gltf"), transportGltfBytes(cl.get("gltf"), mesh, r));
+  outputs.emplace_back(out, transportNpyBytes(r));
+  outputs.emplace_back(sidecarPath(out), transportSidecarBytes(input, mesh, o, r));
+  std::vector<std::unique_ptr<AtomicFile>> files;
+  for (const auto& [path, bytes] : outputs) {
+    files.push_back(std::make_unique<AtomicFile>(path));
+    files.back()->write(bytes);
+  }
+  for (auto& f : files) f->commit();
+  char line[256];
+  std::snprintf(line, sizeof line, "transport: %.3f s (BVH %.3f s), %.3g rays, std. error max %.3g mean %.3g%s",
+                r.totalSeconds, r.bvhSeconds, double(r.rays), r.maxStdError, r.meanStdError,
+                o.mode == TransportMode::Interreflected
+                    ? (", " + std::to_string(r.bouncesUsed) + " bounces").c_str()
+                    : "");
+  status(cl, line);
+  return 0;
+}
+
+PRTBAKE_COMMAND(Command{
+    "transport", "per-vertex PRT transport in SH (unshadowed, shadowed, interreflected)",
+    "prtbake transport MESH -o OUT.npy [--mode unshadowed|shadowed|interreflected] [--bounces B]\n"
+    "       [--order N] [--samples N] [--seed S] [--gltf OUT.glb] [--games202 transport.txt]\n"
+    "       [--bounce-tolerance E] [--albedo A]\n"
+    "Writes OUT.npy (float32 [V, n^2], or [V, 3, n^2] for coloured interreflection) and OUT.json.",
+    {{"output", true, "the .npy output (-o); the JSON sidecar goes beside it"},
+     {"mode", true, "unshadowed | shadowed | interreflected (default shadowed)"},
+     {"bounces", true, "interreflection bounces, 1..64 (default 3)"},
+     {"bounce-tolerance", true, "stop when a bounce adds less than this (default 1e-4; 0: never)"},
+     {"order", true, "SH order 1..8 (default 3)"},
+     {"samples", true, "directions per vertex (default 1024)"},
+     {"seed", true, "sample set seed (default 0)"},
+     {"albedo", true, "grey albedo for every vertex, overriding the file's"},
+     {"gltf", true, "write a copy of the glTF input with _PRT_T* vertex attributes"},
+     {"games202", true, "write a GAMES202 transport.txt"}},
+    1, 1, runTransport});
+
+}  // namespace
+}  // namespace prtbake::cli

@@ -1,0 +1,203 @@
+// Mesh loaders: glTF (binary, text with data URIs, strips, fans, non-indexed, node
+// transforms, missing normals, COLOR_0), OBJ (mary.obj), and bad inputs.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/mesh.h"
+#include "test_common.h"
+
+using namespace prtbake;
+
+namespace {
+// Loader arithmetic is float: transformed positions and renormalised normals carry a
+// few ulps of float (~1e-7 relative); 1e-5 leaves room without hiding a wrong transform.
+constexpr double kGeomTol = 1e-5;
+
+std::string base64(const std::string& in) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const unsigned v = (unsigned char)in[i] << 16 | (unsigned char)in[i + 1] << 8 | (unsigned char)in[i + 2];
+    out += t[v >> 18], out += t[(v >> 12) & 63], out += t[(v >> 6) & 63], out += t[v & 63];
+  }
+  if (i + 1 == in.size()) {
+    const unsigned v = (unsigned char)in[i] << 16;
+    out += t[v >> 18], out += t[(v >> 12) & 63], out += "==";
+  } else if (i + 2 == in.size()) {
+    const unsigned v = (unsigned char)in[i] << 16 | (unsigned char)in[i + 1] << 8;
+    out += t[v >> 18], out += t[(v >> 12) & 63], out += t[(v >> 6) & 63], out += '=';
+  }
+  return out;
+}
+
+template <class T>
+void append(std::string& buf, const std::vector<T>& v) {
+  buf.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+
+void writeText(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+// A .gltf with one data-URI buffer: four vertices of the unit square in z = 0
+// (no normals, a COLOR_0), drawn three ways: indexed strip, non-indexed fan,
+// indexed triangles; node 1 mirrors x (scale −1) and is translated by +2 in z.
+std::string makeTestGltf(const std::string& dir) {
+  const std::vector<float> pos = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  const std::vector<float> col = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
+  const std::vector<uint16_t> strip = {0, 1, 2, 3};
+  const std::vector<float> fanPos = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const std::vector<uint8_t> tris = {0, 1, 3, 0, 3, 2};
+  std::string buf;
+  append(buf, pos);            // 0..48
+  append(buf, col);            // 48..96
+  append(buf, strip);          // 96..104
+  append(buf, fanPos);         // 104..152
+  append(buf, tris);           // 152..158
+  const std::string json = R"({
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0, 1]}],
+  "nodes": [{"mesh": 0}, {"mesh": 1, "scale": [-1, 1, 1], "translation": [0, 0, 2]}],
+  "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 1.0, 1.0, 1.0]}}],
+  "meshes": [
+    {"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": 5, "material": 0},
+                    {"attributes": {"POSITION": 3}, "mode": 6}]},
+    {"primitives": [{"attributes": {"POSITION": 0}, "indices": 4}]}],
+  "buffers": [{"byteLength": 158, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                  {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+                  {"buffer": 0, "byteOffset": 96, "byteLength": 8},
+                  {"buffer": 0, "byteOffset": 104, "byteLength": 48},
+                  {"buffer": 0, "byteOffset": 152, "byteLength": 6}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+    {"bufferView": 2, "componentType": 5123, "count": 4, "type": "SCALAR"},
+    {"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 4, "componentType": 5121, "count": 6, "type": "SCALAR"}]
+})";
+  const std::string path = dir + "/square.gltf";
+  writeText(path, json);
+  return path;
+}
+}  // namespace
+
+TEST_CASE("glTF loader: strips, fans, non-indexed, data URIs, transforms, normals, albedo", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-gltf");
+  const Mesh m = loadMesh(makeTestGltf(dir));
+  REQUIRE(m.vertexCount() == 12);
+  REQUIRE(m.triangleCount() == 6);
+  REQUIRE(m.gltfPrimitives.size() == 3);
+  // Every triangle of the strip and the fan faces +z (counter-clockwise seen from +z):
+  // the computed normals are +z. The mirrored instance keeps its front face +z too
+  // (a negative determinant flips the winding), at z = 2.
+  for (size_t v = 0; v < m.vertexCount(); ++v) {
+    INFO("vertex " << v);
+    CHECK(m.normals[3 * v + 2] == Approx(1.0).margin(kGeomTol));
+  }
+  const auto& mirrored = m.gltfPrimitives[2];
+  CHECK(m.positions[3 * (mirrored.firstVertex + 1)] == Approx(-1.0).margin(kGeomTol));
+  CHECK(m.positions[3 * (mirrored.firstVertex + 1) + 2] == Approx(2.0).margin(kGeomTol));
+  // Albedo = baseColorFactor × COLOR_0 on the strip; 1 where neither is given.
+  CHECK(m.albedo[0] == Approx(0.25));
+  CHECK(m.albedo[1] == Approx(0.5));
+  CHECK(m.albedo[3 * 4] == Approx(1.0));
+  CHECK_FALSE(m.greyAlbedo());
+  // Triangles cover each square exactly once: total area 3.
+  double area = 0;
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    const float* a = &m.positions[3 * m.indices[3 * t]];
+    const float* b = &m.positions[3 * m.indices[3 * t + 1]];
+    const float* c = &m.positions[3 * m.indices[3 * t + 2]];
+    const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double z = e1[0] * e2[1] - e1[1] * e2[0];
+    CHECK(z > 0);  // counter-clockwise seen from +z
+    area += 0.5 * std::abs(z);
+  }
+  CHECK(area == Approx(3.0));
+}
+
+TEST_CASE("glTF loader: Box.glb in world space", "[mesh][data]") {
+  const std::string path = test::dataFile("meshes/gltf/Box.glb");
+  PRTBAKE_SKIP_IF_NO_DATA(path);
+  const Mesh m = loadMesh(path);
+  CHECK(m.vertexCount() == 24);
+  CHECK(m.triangleCount() == 12);
+  // Red material: baseColorFactor (0.8, 0, 0).
+  CHECK(m.albedo[0] == Approx(0.8));
+  CHECK(m.albedo[1] == 0.0f);
+  // The root node rotates +Y to +Z... every normal stays a unit axis vector and
+  // points away from the cube's centre (the origin).
+  for (size_t v = 0; v < m.vertexCount(); ++v) {
+    const float* n = &m.normals[3 * v];
+    const float* p = &m.positions[3 * v];
+    CHECK(std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) == Approx(1.0).margin(kGeomTol));
+    CHECK(n[0] * p[0] + n[1] * p[1] + n[2] * p[2] == Approx(0.5).margin(kGeomTol));
+  }
+}
+
+TEST_CASE("OBJ loader: mary.obj (GAMES202 scene)", "[mesh][data]") {
+  const std::string path = test::dataFile("meshes/obj/mary.obj");
+  PRTBAKE_SKIP_IF_NO_DATA(path);
+  const Mesh m = loadMesh(path);
+  // 10174 faces; distinct (v, vt, vn) triples as the framework's loader counts them.
+  CHECK(m.triangleCount() == 10174);
+  CHECK(m.vertexCount() == 7905);
+  CHECK(m.greyAlbedo());
+}
+
+TEST_CASE("OBJ loader: zero-length normals are recomputed, duplicates and degenerates kept", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-obj");
+  writeText(dir + "/q.obj",
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 0\nvn 0 0 0\nvn 0 0 1\n"
+            "f 1//1 2//1 3//1\nf 1//2 3//2 4//2\nf 5//2 2//2 2//2\n");
+  const Mesh m = loadMesh(dir + "/q.obj");
+  CHECK(m.triangleCount() == 3);
+  for (size_t v = 0; v < m.vertexCount(); ++v) {
+    INFO("vertex " << v);
+    CHECK(m.normals[3 * v + 2] == Approx(1.0).margin(kGeomTol));
+  }
+}
+
+TEST_CASE("Mesh loaders reject bad input with the file name", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-bad");
+  auto expectInputError = [](const std::string& path, const std::string& what) {
+    try {
+      loadMesh(path);
+      FAIL("no error for " << path);
+    } catch (const InputError& e) {
+      INFO(e.what());
+      CHECK(e.subject() == path);
+      CHECK(std::string(e.what()).find(what) != std::string::npos);
+    }
+  };
+  expectInputError(dir + "/missing.glb", "");
+  writeText(dir + "/empty.obj", "# nothing\nv 0 0 0\n");
+  expectInputError(dir + "/empty.obj", "no triangles");
+  writeText(dir + "/empty.gltf", R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": []}]})");
+  expectInputError(dir + "/empty.gltf", "no triangles");
+  writeText(dir + "/nan.obj", "v 0 0 0\nv 1e999 0 0\nv 0 1 0\nf 1 2 3\n");
+  expectInputError(dir + "/nan.obj", "non-finite");
+  writeText(dir + "/garbage.glb", std::string("glTF\x02\0\0\0\x40\0\0\0", 12) + "garbage");
+  expectInputError(dir + "/garbage.glb", "");
+  writeText(dir + "/x.ply", "ply\n");
+  expectInputError(dir + "/x.ply", "unknown mesh format");
+  const std::string inf = test::dataFile("meshes/gltf/BoxWithInfinites.glb");
+  if (!inf.empty()) expectInputError(inf, "non-finite position");
+  // A truncated copy of Box.glb: its accessors run past the end of the BIN chunk.
+  const std::string box = test::dataFile("meshes/gltf/Box.glb");
+  if (!box.empty()) {
+    std::string bytes = readFile(box);
+    writeText(dir + "/truncated.glb", bytes.substr(0, bytes.size() - 200));
+    expectInputError(dir + "/truncated.glb", "");
+  }
+}
