@@ -5,10 +5,13 @@
 #include <chrono>
 
 #include "jobs.h"
+#include "prtbake/atomic_file.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 #include "prtbake/lut.h"
+#include "prtbake/mesh.h"
+#include "prtbake/transport.h"
 #include "prtbake/sh.h"
 
 namespace prtbake::jobs {
@@ -70,11 +73,38 @@ ExecResult runEnv(const Job& job, ExecContext& ctx) {
 }
 
 // --- transport: mesh → per-vertex PRT transfer (prtbake transport) ---
-// NOT WIRED YET: replaced by the call into the transport library when it is
-// merged (load the mesh, compute the transfer with job.params, write the
-// outputs requested in ctx.outputPaths: npy, gltf, games202, json).
-ExecResult runTransport(const Job& job, ExecContext&) {
-  throw Error(job.id, "job type 'transport' is not available in this build");
+ExecResult runTransport(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  TransportOptions options;
+  options.mode = parseTransportMode(p["mode"].get<std::string>());
+  options.order = p["order"].get<int>();
+  options.samples = p["samples"].get<int>();
+  options.seed = p["seed"].get<uint64_t>();
+  options.bounces = p["bounces"].get<int>();
+  options.bounceTolerance = p["bounce_tolerance"].get<double>();
+  if (!p["tolerance"].is_null())
+    throw UsageError("tolerance", "adaptive sample counts are not available for transport jobs yet; give samples");
+  const Mesh mesh = loadMesh(job.input);
+  const TransportResult r = computeTransport(ctx.runtime(), mesh, options);
+  // Every output's bytes first, then the writes: a failure leaves nothing behind.
+  std::vector<std::pair<std::string, std::string>> files;
+  if (ctx.wants("npy")) files.emplace_back(ctx.output("npy"), transportNpyBytes(r));
+  if (ctx.wants("games202")) files.emplace_back(ctx.output("games202"), games202TransportBytes(mesh, r));
+  if (ctx.wants("gltf")) files.emplace_back(ctx.output("gltf"), transportGltfBytes(ctx.output("gltf"), mesh, r));
+  if (ctx.wants("json")) files.emplace_back(ctx.output("json"), transportSidecarBytes(job.input, mesh, options, r));
+  for (const auto& [path, bytes] : files) writeFileAtomic(path, bytes);
+  ExecResult result;
+  result.inputFiles = filesRead(job, mesh.inputFiles);
+  result.report = {{"vertices", r.vertexCount},
+                   {"channels", r.channels},
+                   {"samples", r.samples},
+                   {"rays", r.rays},
+                   {"bounces_used", r.bouncesUsed},
+                   {"standard_error_max", r.maxStdError},
+                   {"standard_error_mean", r.meanStdError},
+                   {"timings", {{"bvh_seconds", r.bvhSeconds}, {"kernel_seconds", r.kernelSeconds},
+                                {"total_seconds", r.totalSeconds}}}};
+  return result;
 }
 
 // --- lut: split-sum BRDF lookup table (prtbake lut) ---
@@ -137,7 +167,8 @@ std::vector<JobType> makeJobTypes() {
   transport.input = InputKind::File;
   transport.outputKinds = {"npy", "gltf", "games202", "json"};
   transport.keys = {choice("mode", "shadowed", {"unshadowed", "shadowed", "interreflected"}),
-                    integer("bounces", 1, 0, 64),
+                    integer("bounces", 3, 1, 64),
+                    number("bounce_tolerance", 1e-4, 0.0, 1.0),
                     integer("order", 3, 1, kMaxShOrder),
                     integer("samples", 1024, 1, 1 << 24),
                     integer("seed", 0, 0, 4294967295.0),

@@ -225,7 +225,7 @@ TEST_CASE("Cavity oracle: inner points of an open sphere, 0 to 3 bounces", "[tra
   for (size_t v = 0; v < cavity.vertexCount(); ++v) CHECK(partial[v] == Approx(r.vertex(v)[0]).epsilon(1e-5));
 }
 
-TEST_CASE("Interreflection: energy per bounce falls geometrically; coloured albedo gives RGB", "[transport]") {
+TEST_CASE("Interreflection: energy per bounce falls geometrically, coloured albedo gives RGB", "[transport]") {
   const Mesh cavity = makeOpenSphereCavity(1.0, kPi / 3, 12, 48);
   TransportOptions o = opts(TransportMode::Interreflected, 2, 256);
   o.bounces = 6;
@@ -300,7 +300,7 @@ TEST_CASE("Transport does not depend on triangle order or scale", "[transport]")
   }
 }
 
-TEST_CASE("Orders 1 to 8 against Funk-Hecke; order 0 and 9 are usage errors", "[transport]") {
+TEST_CASE("Orders 1 to 8 against Funk-Hecke, order 0 and 9 are usage errors", "[transport]") {
   const Mesh sphere = makeUvSphere(1.0, 6, 12);
   // Unshadowed at 4096 samples: higher bands oscillate faster, so the
   // low-discrepancy error grows with the order; 1e-2 still separates a wrong band.
@@ -316,7 +316,7 @@ TEST_CASE("Orders 1 to 8 against Funk-Hecke; order 0 and 9 are usage errors", "[
   CHECK_THROWS_AS(computeTransport(test::runtime(), sphere, opts(TransportMode::Shadowed, 3, 0)), UsageError);
 }
 
-TEST_CASE("Unoccluded T00 is exactly Y0; a closed box blocks every ray", "[transport]") {
+TEST_CASE("Unoccluded T00 is exactly Y0, a closed box blocks every ray", "[transport]") {
   // Cosine sampling makes the unshadowed T00 estimator constant: (1/N) Σ Y0 = Y0.
   const Mesh sphere = makeUvSphere(1.0, 6, 12);
   const auto u = computeTransport(test::runtime(), sphere, opts(TransportMode::Unshadowed, 2, 64));
@@ -356,7 +356,7 @@ TEST_CASE("Degenerate triangles, duplicate vertices and zero normals are handled
   CHECK(r.vertex(n)[0] == Approx(r.vertex(5)[0]).margin(0.02));
 }
 
-TEST_CASE("Transport is deterministic; the seed changes the sample set", "[transport]") {
+TEST_CASE("Transport is deterministic, the seed changes the sample set", "[transport]") {
   Mesh scene = makeUvSphere(1.0, 8, 16);
   appendMesh(scene, makeSquare(3.0, -1.2, 2, false));
   TransportOptions o = opts(TransportMode::Interreflected, 3, 128);

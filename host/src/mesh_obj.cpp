@@ -26,6 +26,7 @@ Mesh loadObj(const std::string& path) {
   const auto& attrib = reader.GetAttrib();
   Mesh mesh;
   mesh.sourcePath = path;
+  mesh.inputFiles = {path};
   mesh.format = Mesh::Format::Obj;
   std::map<std::tuple<int, int, int>, uint32_t> seen;
   const size_t np = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3, nt = attrib.texcoords.size() / 2;
