@@ -16,9 +16,12 @@
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
 #include "prtbake/sh.h"
+#include "env_test_helpers.h"
 #include "test_common.h"
 
 using namespace prtbake;
+using test::knownCoeffs;
+using test::maxAbsDiff;
 
 namespace {
 
@@ -102,21 +105,6 @@ void writeExrLatLong(const std::string& path, int h, const Fn& f) {
       p.set(x, y, f(d));
     }
   p.write(path, 0);
-}
-
-ShCoeffs knownCoeffs() {
-  ShCoeffs c;
-  c.order = 3;
-  c.rgb = {{3.0, 2.5, 2.0},   {0.3, -0.2, 0.1},  {0.5, 0.4, -0.3}, {-0.4, 0.2, 0.25}, {0.2, 0.1, -0.1},
-           {-0.15, 0.3, 0.2}, {0.25, -0.1, 0.3}, {0.1, 0.2, -0.2}, {-0.3, 0.15, 0.1}};
-  return c;
-}
-
-double maxAbsDiff(const ShCoeffs& a, const ShCoeffs& b) {
-  double worst = 0;
-  for (size_t k = 0; k < a.rgb.size(); ++k)
-    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(a.rgb[k][size_t(c)] - b.rgb[k][size_t(c)]));
-  return worst;
 }
 
 ShCoeffs projectFile(const std::string& path, int order, const std::string& layout = "auto") {

@@ -7,6 +7,7 @@
 
 #include "prtbake/env_sh.h"
 #include "prtbake/sh.h"
+#include "env_test_helpers.h"
 #include "test_common.h"
 
 using namespace prtbake;
@@ -14,19 +15,6 @@ using namespace prtbake;
 namespace {
 
 const double kPi = 3.14159265358979323846;
-
-EnvMap makeCube(int n, const std::function<double(const double*)>& f) {
-  EnvMap e;
-  e.layout = EnvLayout::Cube;
-  e.width = e.height = n;
-  e.rgb.resize(e.texelCount() * 3);
-  for (size_t t = 0; t < e.texelCount(); ++t) {
-    double d[3];
-    texelDirection(e, t, d, nullptr);
-    e.rgb[3 * t] = e.rgb[3 * t + 1] = e.rgb[3 * t + 2] = float(f(d));
-  }
-  return e;
-}
 
 // Relative RMS over a spherical Fibonacci set of (E_n − E) where E is the exact
 // irradiance of the texels (Σ L max(0, n·ω) Ω) and E_n the order-n SH irradiance.
@@ -63,10 +51,11 @@ TEST_CASE("Order auto: low for a smooth sky, higher with a sun, stated error hol
   // band 24 carries Â_l² < 1e-5 of the energy, and the Fibonacci set of 1500 points
   // estimates the sphere's RMS to a few %: kSlack = 1.25 (relative) + 1e-3 (absolute).
   constexpr double kTolerance = 0.01, kSlackRel = 1.25, kSlackAbs = 1e-3;
-  const EnvMap smooth = makeCube(48, [](const double* d) { return 1.0 + 0.6 * d[1] + 0.2 * d[0] * d[2]; });
-  const EnvMap sun = makeCube(48, [](const double* d) {
+  const EnvMap smooth = test::makeCube(48, [](const double* d) { const double v = 1.0 + 0.6 * d[1] + 0.2 * d[0] * d[2]; return Rgb{v, v, v}; });
+  const EnvMap sun = test::makeCube(48, [](const double* d) {
     const double c = 0.3 * d[0] + 0.8 * d[1] + 0.52 * d[2];
-    return 0.5 + 0.3 * d[1] + (c > 0.9995 ? 20000.0 : 0.0);
+    const double v = 0.5 + 0.3 * d[1] + (c > 0.9995 ? 20000.0 : 0.0);
+    return Rgb{v, v, v};
   });
   int chosen[2];
   int k = 0;

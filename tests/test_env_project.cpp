@@ -9,9 +9,14 @@
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
+#include "env_test_helpers.h"
 #include "test_common.h"
 
 using namespace prtbake;
+using test::knownCoeffs;
+using test::makeCube;
+using test::makeLatLong;
+using test::maxAbsDiff;
 
 namespace {
 
@@ -21,52 +26,6 @@ const double kPi = 3.14159265358979323846;
 constexpr double kFurnaceRelTol = 1e-5;   // L00 = √(4π)
 constexpr double kFurnaceOtherTol = 1e-5; // every other coefficient
 constexpr double kSolidAngleTol = 1e-6;   // Σ Ω = 4π
-
-EnvMap makeCube(int n, const std::function<Rgb(const double*)>& f) {
-  EnvMap e;
-  e.layout = EnvLayout::Cube;
-  e.width = e.height = n;
-  e.rgb.resize(6 * size_t(n) * n * 3);
-  for (size_t t = 0; t < e.texelCount(); ++t) {
-    double d[3];
-    texelDirection(e, t, d, nullptr);
-    const Rgb v = f(d);
-    for (int c = 0; c < 3; ++c) e.rgb[3 * t + c] = float(v[size_t(c)]);
-  }
-  return e;
-}
-
-EnvMap makeLatLong(int h, const std::function<Rgb(const double*)>& f) {
-  EnvMap e;
-  e.layout = EnvLayout::LatLong;
-  e.width = 2 * h;
-  e.height = h;
-  e.rgb.resize(e.texelCount() * 3);
-  for (size_t t = 0; t < e.texelCount(); ++t) {
-    double d[3];
-    texelDirection(e, t, d, nullptr);
-    const Rgb v = f(d);
-    for (int c = 0; c < 3; ++c) e.rgb[3 * t + c] = float(v[size_t(c)]);
-  }
-  return e;
-}
-
-// Known band-limited radiance (bands 0–2), positive everywhere: the constant term
-// dominates the sum of |other| × max|Y|.
-ShCoeffs knownCoeffs() {
-  ShCoeffs c;
-  c.order = 3;
-  c.rgb = {{3.0, 2.5, 2.0},   {0.3, -0.2, 0.1},  {0.5, 0.4, -0.3}, {-0.4, 0.2, 0.25}, {0.2, 0.1, -0.1},
-           {-0.15, 0.3, 0.2}, {0.25, -0.1, 0.3}, {0.1, 0.2, -0.2}, {-0.3, 0.15, 0.1}};
-  return c;
-}
-
-double maxAbsDiff(const ShCoeffs& a, const ShCoeffs& b) {
-  double worst = 0;
-  for (size_t k = 0; k < a.rgb.size(); ++k)
-    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(a.rgb[k][size_t(c)] - b.rgb[k][size_t(c)]));
-  return worst;
-}
 
 ShCoeffs project(const EnvMap& e, int order) {
   EnvProjectOptions o;
