@@ -123,6 +123,45 @@ struct StbFree {
   void operator()(void* p) const { stbi_image_free(p); }
 };
 
+// stb_image's RLE scanline decoder for Radiance .hdr loops forever on a run
+// length of 0, which is what it reads at the end of a truncated file (and what
+// a corrupt file may hold). Walks the RLE structure the way stb does and returns
+// what is wrong, or "" to let stb decode (and report anything else).
+std::string hdrRleProblem(const unsigned char* buf, size_t len) {
+  size_t pos = 0;
+  auto line = [&]() {
+    std::string s;
+    while (pos < len && buf[pos] != '\n') s += char(buf[pos++]);
+    if (pos < len) ++pos;
+    return s;
+  };
+  while (pos < len && !line().empty()) {
+  }
+  int h = 0, w = 0;
+  if (std::sscanf(line().c_str(), "-Y %d +X %d", &h, &w) != 2 || w < 8 || w >= 32768 || h <= 0) return "";
+  for (int row = 0; row < h; ++row) {
+    if (pos + 4 > len) return "truncated (scanline " + std::to_string(row) + " of " + std::to_string(h) + ")";
+    if (buf[pos] != 2 || buf[pos + 1] != 2 || (buf[pos + 2] & 0x80)) return "";  // flat data: stb copes
+    pos += 4;
+    for (int channel = 0; channel < 4; ++channel)
+      for (int x = 0; x < w;) {
+        if (pos >= len) return "truncated (scanline " + std::to_string(row) + " of " + std::to_string(h) + ")";
+        const int count = buf[pos++];
+        if (count == 0) return "corrupt RLE data (a run of length 0 in scanline " + std::to_string(row) + ")";
+        if (count > 128) {
+          if (count - 128 > w - x) return "";  // stb reports the overrun
+          x += count - 128;
+          pos += 1;
+        } else {
+          if (count > w - x) return "";
+          x += count;
+          pos += size_t(count);
+        }
+      }
+  }
+  return "";
+}
+
 Image readWithStb(const std::string& path, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode) {
   if (bytes.empty()) throw InputError(path, "cannot decode image: the file is empty");
   if (bytes.size() > size_t(std::numeric_limits<int>::max())) throw InputError(path, "file too large");
@@ -133,6 +172,8 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
   // Ask stb for 3 channels: it replicates grey and drops alpha.
   if (stbi_is_hdr_from_memory(buf, len)) {
     img.format = "Radiance HDR";
+    if (const std::string problem = hdrRleProblem(buf, bytes.size()); !problem.empty())
+      throw InputError(path, "cannot decode Radiance HDR image: " + problem);
     std::unique_ptr<float, StbFree> px(stbi_loadf_from_memory(buf, len, &w, &h, &channelsInFile, 3));
     if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stbReason());
     checkSize(path, w, h);
