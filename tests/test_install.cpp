@@ -87,7 +87,8 @@ TEST_CASE("installed package: find_package(prtbake) builds and runs the pipeline
   const CliResult cli = runCli("env '" + dir + "/white.exr' -o '" + dir + "/cli.json' --quantity irradiance --quiet");
   INFO(cli.output);
   REQUIRE(cli.exitCode == 0);
-  const auto& ref = readJson(dir + "/cli.json").at("coefficients");
+  const nlohmann::json cliJson = readJson(dir + "/cli.json");
+  const auto& ref = cliJson.at("coefficients");
   const double kSameComputationTol = 1e-12;
   for (size_t i = 0; i < 9; ++i)
     for (int ch = 0; ch < 3; ++ch)
