@@ -128,10 +128,11 @@ TEST_CASE("corpus: transport jobs fail cleanly on every bad mesh", "[corpus]") {
     else WARN(std::string("skipped ") + rel + ": external data not found");
   fs::create_directories(dir + "/in/directory.glb");
   inputs.push_back(dir + "/in/directory.glb");
-  for (const auto& input : inputs) {
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    const std::string& input = inputs[i];
     const std::string id = fs::path(input).filename().string();
     INFO(input);
-    const std::string jobDir = dir + "/" + id;
+    const std::string jobDir = dir + "/case" + std::to_string(i);  // not named after the mesh
     fs::create_directories(jobDir);
     {
       std::ofstream job(jobDir + "/job.json");
