@@ -12,6 +12,7 @@ namespace {
 
 std::string formatDuration(double s) {
   const long t = std::lround(s);
+  if (t < 1) return "<1 s";
   if (t < 60) return std::to_string(t) + " s";
   if (t < 3600) return std::to_string(t / 60) + " min " + std::to_string(t % 60) + " s";
   return std::to_string(t / 3600) + " h " + std::to_string(t % 3600 / 60) + " min";
