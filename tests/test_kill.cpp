@@ -172,7 +172,7 @@ std::vector<json> checkCompleted(const std::string& dir) {
 
 }  // namespace
 
-TEST_CASE("kill -9 during prtbake run: no partial output; the rerun completes and cleans up", "[kill][jobs]") {
+TEST_CASE("kill -9 during prtbake run leaves no partial output, and the rerun completes and cleans up", "[kill][jobs]") {
   const std::string dir = tempDir("kill");
   writeBigLatLong(dir + "/sky.exr", 2048, 1024);
   writeJobs(dir);

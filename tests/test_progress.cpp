@@ -6,7 +6,7 @@
 
 using namespace prtbake::test;
 
-TEST_CASE("run: --progress prints one line per job; no progress without it off a terminal", "[jobs][progress]") {
+TEST_CASE("run: --progress prints one line per job, and no progress without it off a terminal", "[jobs][progress]") {
   const std::string dir = tempDir("progress");
   writeLatLongExr(dir + "/sky.exr");
   writeJobFile(dir + "/jobs.json", {envJob("a", "sky.exr", "out/a.json"), envJob("b", "sky.exr", "out/b.json"),
