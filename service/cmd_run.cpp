@@ -3,6 +3,7 @@
 
 #include "cli.h"
 #include "prtbake/error.h"
+#include "progress.h"
 #include "runner.h"
 
 namespace prtbake::cli {
@@ -23,6 +24,7 @@ int runRun(const CommandLine& cl) {
   options.force = cl.has("force");
   options.dryRun = cl.has("dry-run");
   options.device = cl.device();
+  options.progress = jobs::Progress::wanted(cl.quiet(), cl.has("progress"));
   if (cl.has("jobs")) options.only = parseIdList(cl.get("jobs"));
   jobs::Reporter reporter(cl.quiet(), cl.has("log-json"));
   jobs::Runner runner(options, reporter);

@@ -282,6 +282,34 @@ const JobType* findJobType(const std::string& name) {
   return nullptr;
 }
 
+namespace {
+
+// nlohmann's serializer (used to show a wrong value in a message) and copies recurse
+// once per nesting level, so a job file nested thousands deep would overflow the
+// stack. Job files nest four levels; deeper text is refused before it is parsed.
+constexpr int kMaxJsonDepth = 64;
+
+int jsonNestingDepth(const std::string& text) {
+  int depth = 0, deepest = 0;
+  bool inString = false, escaped = false;
+  for (const char c : text) {
+    if (inString) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') inString = false;
+    } else if (c == '"') {
+      inString = true;
+    } else if (c == '[' || c == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+}  // namespace
+
 JobFile loadJobFile(const std::string& path, const std::string& baseDir) {
   JobFile file;
   file.path = path;
@@ -292,10 +320,14 @@ JobFile loadJobFile(const std::string& path, const std::string& baseDir) {
     file.fileProblems.push_back({"", "", e.detail()});
     return file;
   }
+  if (jsonNestingDepth(text) > kMaxJsonDepth) {
+    file.fileProblems.push_back({"", "", "JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels"});
+    return file;
+  }
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for numbers like 1e400
     std::string what = e.what();
     if (auto pos = what.find("] "); what.rfind("[json.exception", 0) == 0 && pos != std::string::npos)
       what = what.substr(pos + 2);

@@ -15,6 +15,7 @@
 #include <iostream>
 
 #include "manifest.h"
+#include "progress.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 
@@ -109,11 +110,13 @@ std::string reasonOf(const Job& job, const std::exception& e) {
 }  // namespace
 
 void Reporter::status(const std::string& line) {
+  if (progress_) progress_->clearLine();
   if (capture_) *capture_ << line << "\n";
   if (!quiet_) std::cout << line << std::endl;
 }
 
 void Reporter::error(const std::string& line) {
+  if (progress_) progress_->clearLine();
   if (capture_) *capture_ << "error: " << line << "\n";
   std::cerr << "prtbake: error: " << line << std::endl;
 }
@@ -176,8 +179,20 @@ RunTotals Runner::run(const std::vector<JobFileRef>& refs) {
         reporter_.event({{"event", "error"}, {"file", f.path}, {"job", p.job}, {"key", p.key}, {"message", p.what}});
       }
   }
+  int jobCount = 0, index = 0;
+  for (const auto& f : files) jobCount += int(f.jobs.size());
+  Progress progress(options_.progress && !options_.dryRun, jobCount);
+  reporter_.setProgress(&progress);
   for (const auto& f : files)
-    for (const auto& job : f.jobs) runJob(job, totals);
+    for (const auto& job : f.jobs) {
+      progress.begin(++index, job.label);
+      const auto tJob = Clock::now();
+      const int ranBefore = totals.ok + totals.failed;
+      runJob(job, totals);
+      progress.end(secondsSince(tJob), job.valid() && totals.ok + totals.failed > ranBefore);
+    }
+  progress.clearLine();
+  reporter_.setProgress(nullptr);
   totals.seconds = secondsSince(t0);
   return totals;
 }

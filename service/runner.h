@@ -13,6 +13,8 @@
 
 namespace prtbake::jobs {
 
+class Progress;
+
 // Where status lines, errors and JSON events go. Status lines ("[ok] id (1.23 s)")
 // go to stdout unless quiet; errors ("prtbake: error: ...") to stderr always;
 // events (one JSON object per line) to stderr with --log-json. A capture, when
@@ -24,11 +26,14 @@ class Reporter {
   void error(const std::string& line);  // without the "prtbake: error: " prefix
   void event(json e);
   void setCapture(std::ostringstream* capture) { capture_ = capture; }
+  // A progress line on the terminal is cleared before each status or error line.
+  void setProgress(Progress* progress) { progress_ = progress; }
   bool quiet() const { return quiet_; }
 
  private:
   bool quiet_, logJson_;
   std::ostringstream* capture_ = nullptr;
+  Progress* progress_ = nullptr;
 };
 
 struct RunOptions {
@@ -36,6 +41,7 @@ struct RunOptions {
   bool dryRun = false;            // validate and say what would run; run nothing
   std::set<std::string> only;     // --jobs: run only these ids (empty: all)
   std::string device;             // --device spec for the runtime
+  bool progress = false;          // "[3/20] id ... ETA" on stderr (see progress.h)
 };
 
 struct JobFileRef {
