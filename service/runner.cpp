@@ -176,8 +176,21 @@ RunTotals Runner::run(const std::vector<JobFileRef>& refs) {
         reporter_.event({{"event", "error"}, {"file", f.path}, {"job", p.job}, {"key", p.key}, {"message", p.what}});
       }
   }
+  const ShardSpec& shard = options_.shard;
+  size_t position = 0;  // k: whole job k belongs to shard k mod N (shard.h)
   for (const auto& f : files)
-    for (const auto& job : f.jobs) runJob(job, totals);
+    for (const auto& job : f.jobs) {
+      const size_t k = position++;
+      if (!shard.active()) {
+        runJob(job, totals);
+      } else if (isSplit(job)) {
+        runJob(partialJob(job, shard), totals);
+      } else if (shardOfJob(k, shard.count) == shard.index) {
+        Job owned = job;
+        if (!job.outputs.empty()) owned.failureMarker = failureMarkerPath(job, shard.index, shard.count);
+        runJob(owned, totals);
+      }
+    }
   totals.seconds = secondsSince(t0);
   return totals;
 }
@@ -189,6 +202,14 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
                    {"type", job.type ? job.type->name : ""}});
   auto fail = [&](const std::string& reason) {
     ++totals.failed;
+    if (!job.failureMarker.empty() && !options_.dryRun) {
+      try {
+        writeFileAtomic(job.failureMarker, json{{"id", job.id}, {"job_file", job.jobFile},
+                                                {"parameters", job.params}, {"error", reason}}.dump(2) + "\n");
+      } catch (const std::exception&) {
+        // The missing partial result still keeps merge from using this shard.
+      }
+    }
     end["status"] = "failed";
     end["error"] = reason;
     end["seconds"] = secondsSince(t0);
@@ -213,6 +234,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
     const std::string why = whyOutOfDate(job);
     if (why.empty()) {
       ++totals.skipped;
+      if (!job.failureMarker.empty()) ::unlink(job.failureMarker.c_str());
       end["status"] = "skipped";
       end["seconds"] = secondsSince(t0);
       reporter_.status("[skipped] " + job.label + " (up to date)");
@@ -268,6 +290,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
     return;
   }
   ++totals.ok;
+  if (!job.failureMarker.empty()) ::unlink(job.failureMarker.c_str());
   const double seconds = secondsSince(t0);
   end["status"] = "ok";
   end["seconds"] = seconds;

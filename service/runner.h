@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "jobs.h"
+#include "shard.h"
 
 namespace prtbake::jobs {
 
@@ -36,6 +37,7 @@ struct RunOptions {
   bool dryRun = false;            // validate and say what would run; run nothing
   std::set<std::string> only;     // --jobs: run only these ids (empty: all)
   std::string device;             // --device spec for the runtime
+  ShardSpec shard;                // --shard I/N: run only shard I's part (shard.h)
 };
 
 struct JobFileRef {
