@@ -148,6 +148,14 @@ TEST_CASE("slurm: 8-task arrays + merge equal one process, also after a requeued
           REQUIRE(rq.exitCode == 0);
           victim = task;
           CHECK_FALSE(fileExists(manifest));  // it really was killed before its commit
+          // Slurm makes a requeued job eligible only ~2 minutes later; as an operator
+          // would, start it now (once it is pending again).
+          const std::string id = array + "_" + task;
+          for (int i = 0; i < 100 && jobState(id) != "PENDING"; ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          const CliResult now = shell("scontrol update jobid=" + id + " starttime=now");
+          INFO(now.output);
+          CHECK(now.exitCode == 0);
         }
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
