@@ -83,7 +83,7 @@ struct Fixture {
 
 }  // namespace
 
-TEST_CASE("shard: 1, 3 and 8 shards merge to the one-process result, bit for bit", "[shard]") {
+TEST_CASE("shard: 1 or 3 or 8 shards merge to the one-process result bit for bit", "[shard]") {
   Fixture fx("shard-identical");
   fx.reference();
   for (int n : {1, 3, 8}) {
@@ -103,7 +103,7 @@ TEST_CASE("shard: 1, 3 and 8 shards merge to the one-process result, bit for bit
   }
 }
 
-TEST_CASE("shard: merge names missing and failed shards; a rerun gives the same partial bytes", "[shard]") {
+TEST_CASE("shard: merge names missing and failed shards and a rerun gives the same partial bytes", "[shard]") {
   Fixture fx("shard-refuse");
   fx.reference();
   const std::string jobFile = fx.jobFile(3);

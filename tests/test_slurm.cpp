@@ -108,7 +108,7 @@ void requireSameBytes(const std::string& a, const std::string& b) {
 
 }  // namespace
 
-TEST_CASE("slurm: 8-task arrays + merge equal one process, also after a requeued task", "[slurm]") {
+TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeued task", "[slurm]") {
   if (const std::string why = whyNoCluster(); !why.empty()) {
     WARN("skipped: no Slurm test cluster: " << why);
     return;
