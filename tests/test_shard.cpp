@@ -2,9 +2,13 @@
 // bit for bit; merge refuses incomplete or failed shards and names them; a shard
 // rerun writes the same partial bytes (docs/scaleout.md). Through the built CLI.
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <catch2/catch.hpp>
 
+#include "prtbake/error.h"
+#include "prtbake/mesh.h"
+#include "prtbake/transport.h"
 #include "shard_test_helpers.h"
 
 using namespace prtbake;
@@ -207,4 +211,44 @@ TEST_CASE("shard: usage errors and jobs that cannot be split", "[shard]") {
   CHECK_THAT(dry.output, Catch::Contains(" merge '" + dir + "/jobs.json' --shards 8"));
   CHECK_THAT(dry.output, Catch::Contains("--dependency=afterok:ARRAY_ID"));
   CHECK_THAT(dry.output, Catch::Contains("#SBATCH --partition=batch"));
+}
+
+TEST_CASE("shard: a vertex range of computeTransport equals the same vertices of the whole mesh", "[shard]") {
+  const std::string dir = tempDir("shard-range");
+  writeSceneObj(dir + "/scene.obj");
+  const Mesh mesh = loadMesh(dir + "/scene.obj");
+  const size_t nv = mesh.vertexCount();
+  for (int packet : {16, 8, 0}) {
+    TransportOptions o;
+    o.samples = 96;  // not a multiple of the packet width
+    o.seed = 7;
+    o.packetWidth = packet;
+    const TransportResult full = computeTransport(runtime(), mesh, o);
+    REQUIRE(full.coeffs.size() == nv * 9);
+    for (auto [first, count] : {std::pair<size_t, size_t>{0, 1}, {1, 37}, {nv / 3, nv / 3 + 5}, {nv - 13, 13}}) {
+      INFO("packet " << packet << ", vertices " << first << " + " << count);
+      TransportOptions ro = o;
+      ro.firstVertex = first;
+      ro.vertexCount = count;
+      const TransportResult part = computeTransport(runtime(), mesh, ro);
+      REQUIRE(part.vertexCount == count);
+      CHECK(part.firstVertex == first);
+      REQUIRE(part.coeffs.size() == count * 9);
+      CHECK(std::memcmp(part.coeffs.data(), full.coeffs.data() + first * 9, count * 9 * sizeof(float)) == 0);
+      CHECK(std::memcmp(part.stdError.data(), full.stdError.data() + first, count * sizeof(float)) == 0);
+    }
+  }
+  TransportOptions o;
+  o.samples = 16;
+  o.firstVertex = nv;  // an empty range at the end
+  CHECK(computeTransport(runtime(), mesh, o).coeffs.empty());
+  o.firstVertex = nv + 1;
+  CHECK_THROWS_AS(computeTransport(runtime(), mesh, o), UsageError);
+  o.firstVertex = 10;
+  o.vertexCount = nv;
+  CHECK_THROWS_AS(computeTransport(runtime(), mesh, o), UsageError);
+  o.firstVertex = 0;
+  o.vertexCount = 10;
+  o.mode = TransportMode::Interreflected;
+  CHECK_THROWS_AS(computeTransport(runtime(), mesh, o), UsageError);
 }
