@@ -100,6 +100,27 @@ class StagedOutputs {
   std::vector<std::pair<std::string, std::string>> order_;   // staging, final
 };
 
+// With --shard, processes on other hosts write to the same directories at the same time,
+// and the pid in a temp file's name says nothing about a process on another host: a
+// sharded run removes only temp and staging files untouched for this long (a temp file
+// lives from its first write to its rename, seconds for any product).
+constexpr double kShardStaleTempSeconds = 3600;
+
+int removeOldTempFiles(const std::string& dir, double ageSeconds) {
+  int removed = 0;
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.empty() || name[0] != '.' || name.find(".prtbake-tmp.") == std::string::npos) continue;
+    std::error_code tec;
+    const auto t = fs::last_write_time(e.path(), tec);
+    if (tec || std::chrono::duration<double>(now - t).count() < ageSeconds) continue;
+    if (fs::remove(e.path(), tec)) ++removed;
+  }
+  return removed;
+}
+
 // The reason an exception gives, without repeating the job id.
 std::string reasonOf(const Job& job, const std::exception& e) {
   if (auto* pe = dynamic_cast<const Error*>(&e); pe && pe->subject() == job.id) return pe->detail();
@@ -227,7 +248,8 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   for (const auto& o : job.outputs) dirs.insert(dirOf(o.path));
   if (!options_.dryRun)
     for (const auto& d : dirs)
-      if (const int n = removeStaleTempFiles(d); n > 0)
+      if (const int n = options_.shard.active() ? removeOldTempFiles(d, kShardStaleTempSeconds) : removeStaleTempFiles(d);
+          n > 0)
         reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
 
   if (!options_.force) {

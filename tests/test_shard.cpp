@@ -120,10 +120,14 @@ TEST_CASE("shard: merge names missing and failed shards and a rerun gives the sa
   SECTION("a rerun writes or keeps the same bytes") {
     const CliResult skip = runCli("run " + q(jobFile) + " --shard 1/3");
     CHECK_THAT(skip.output, Catch::Contains("[skipped] scene [shard 1/3] (up to date)"));
+    // A staging file of a shard on another host (its pid means nothing here) is left alone.
+    const std::string foreign = fx.dir + "/s3/.stage.prtbake-tmp.999999.0.npy.npy";
+    writeText(foreign, "being written elsewhere");
     const CliResult force = runCli("run " + q(jobFile) + " --shard 1/3 --force");
     INFO(force.output);
     REQUIRE(force.exitCode == 0);
     CHECK(readText(partial1) == bytes1);
+    CHECK(fileExists(foreign));
     // A task killed before its commit leaves nothing; its rerun starts from scratch.
     std::filesystem::remove(partial1);
     std::filesystem::remove(partial1 + ".manifest.json");
