@@ -3,7 +3,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PKGS="build-essential cmake pocl-opencl-icd ocl-icd-opencl-dev opencl-clhpp-headers clinfo \
-libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev catch2 libstb-dev nlohmann-json3-dev"
+libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev catch2 libstb-dev nlohmann-json3-dev \
+slurm-wlm munge"
 missing=""
 for p in $PKGS; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ]; then

@@ -26,6 +26,11 @@ int runRun(const CommandLine& cl) {
   options.device = cl.device();
   options.progress = jobs::Progress::wanted(cl.quiet(), cl.has("progress"));
   if (cl.has("jobs")) options.only = parseIdList(cl.get("jobs"));
+  if (cl.has("shard")) {
+    options.shard = jobs::parseShardSpec(cl.get("shard"));
+    // Job k belongs to shard k mod N over the whole file: a subset would renumber it.
+    if (cl.has("jobs")) throw UsageError("--shard", "cannot be combined with --jobs");
+  }
   jobs::Reporter reporter(cl.quiet(), cl.has("log-json"));
   jobs::Runner runner(options, reporter);
   std::vector<jobs::JobFileRef> files;
@@ -37,14 +42,18 @@ int runRun(const CommandLine& cl) {
 
 PRTBAKE_COMMAND(Command{
     "run", "run the jobs of job files (skips jobs whose outputs are up to date)",
-    "prtbake run JOBFILE... [--force] [--jobs ID,...] [--dry-run]\n\n"
+    "prtbake run JOBFILE... [--force] [--jobs ID,...] [--dry-run] [--shard I/N]\n\n"
     "Validates every job file first and reports every problem; runs the valid jobs on one\n"
     "OpenCL runtime (started only if some job has work to do); each job's outputs appear\n"
     "together or not at all, followed by <first output>.manifest.json. Exit code 0 when\n"
-    "every job succeeded or was up to date, 1 otherwise, 2 for usage errors. See docs/jobs.md.",
+    "every job succeeded or was up to date, 1 otherwise, 2 for usage errors. See docs/jobs.md.\n"
+    "With --shard I/N only shard I's part runs: job k of the file when k mod N = I, and its\n"
+    "vertex range of every transport job with \"split\": true (then: prtbake merge; see\n"
+    "docs/scaleout.md).",
     {{"force", false, "rerun jobs even when their manifest shows them up to date"},
      {"jobs", true, "run only the jobs with these ids (comma-separated)"},
-     {"dry-run", false, "validate and print what would run, without running anything"}},
+     {"dry-run", false, "validate and print what would run, without running anything"},
+     {"shard", true, "I/N or auto/N: run shard I of N (auto: $SLURM_ARRAY_TASK_ID or $JOB_COMPLETION_INDEX)"}},
     1, 1000000, runRun});
 
 }  // namespace

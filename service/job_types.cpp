@@ -73,8 +73,9 @@ ExecResult runEnv(const Job& job, ExecContext& ctx) {
 }
 
 // --- transport: mesh → per-vertex PRT transfer (prtbake transport) ---
-ExecResult runTransport(const Job& job, ExecContext& ctx) {
-  const json& p = job.params;
+}  // namespace
+
+TransportOptions transportOptionsFrom(const json& p) {
   TransportOptions options;
   options.mode = parseTransportMode(p["mode"].get<std::string>());
   options.order = p["order"].get<int>();
@@ -84,6 +85,13 @@ ExecResult runTransport(const Job& job, ExecContext& ctx) {
   options.bounceTolerance = p["bounce_tolerance"].get<double>();
   if (!p["tolerance"].is_null())
     throw UsageError("tolerance", "adaptive sample counts are not available for transport jobs yet; give samples");
+  return options;
+}
+
+namespace {
+
+ExecResult runTransport(const Job& job, ExecContext& ctx) {
+  const TransportOptions options = transportOptionsFrom(job.params);
   const Mesh mesh = loadMesh(job.input);
   const TransportResult r = computeTransport(ctx.runtime(), mesh, options);
   // Every output's bytes first, then the writes: a failure leaves nothing behind.
@@ -180,9 +188,15 @@ std::vector<JobType> makeJobTypes() {
       problems.push_back({"tolerance", "cannot be combined with samples (give one or the other)"});
     if (raw.contains("bounces") && p["mode"] != "interreflected")
       problems.push_back({"bounces", "only applies to mode 'interreflected'"});
+    // Each bounce reads the previous bounce of every vertex: no vertex range can be
+    // computed alone, so an interreflected job runs whole in one shard.
+    if (raw.contains("split") && raw["split"] == json(true) && p["mode"] == "interreflected")
+      problems.push_back({"split", "interreflected jobs cannot be split by vertices (each bounce needs every "
+                                   "vertex's previous bounce); remove split to run the job whole in one shard"});
     return problems;
   };
   transport.execute = runTransport;
+  transport.splittable = true;
   types.push_back(transport);
 
   JobType lut;

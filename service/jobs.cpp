@@ -112,6 +112,13 @@ class JobValidator {
 
     std::vector<std::string> known = kCommonKeys;
     for (const auto& k : t.keys) known.push_back(k.name);
+    if (t.splittable) {
+      known.push_back("split");
+      if (auto it = j.find("split"); it != j.end()) {
+        if (it->is_boolean()) job_.split = it->get<bool>();
+        else problem("split", "expected true or false, got " + shown(*it));
+      }
+    }
     for (auto it = j.begin(); it != j.end(); ++it) {
       if (std::find(known.begin(), known.end(), it.key()) != known.end()) continue;
       problem(it.key(), "unknown key for " + t.name + " jobs" + didYouMean(it.key(), known));

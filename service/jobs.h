@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "prtbake/runtime.h"
+#include "prtbake/transport.h"
 
 namespace prtbake::jobs {
 
@@ -61,7 +62,14 @@ struct JobType {
   // its normalised parameters; returns {key, what} problems.
   std::function<std::vector<std::pair<std::string, std::string>>(const json& raw, const json& params)> check;
   std::function<ExecResult(const Job&, ExecContext&)> execute;
+  // Accepts the key "split" (true: `prtbake run --shard I/N` splits the job by vertex
+  // ranges across the shards; docs/scaleout.md). It selects how the work is spread,
+  // not what is computed, so it is not one of the parameters.
+  bool splittable = false;
 };
+
+// The TransportOptions of a transport job's normalised parameters (job_types.cpp).
+TransportOptions transportOptionsFrom(const json& params);
 
 // Every job type of this build (job_types.cpp).
 const std::vector<JobType>& jobTypes();
@@ -90,6 +98,10 @@ struct Job {
   json params;                     // normalised: every key with its default, absolute paths
   std::string manifestPath;        // <first output>.manifest.json
   std::vector<Problem> problems;   // empty ⇔ the job is valid
+  bool split = false;              // "split": true (types that are splittable only)
+  // Where the runner records why the job failed (a JSON file), when set; removed
+  // again when the job succeeds or is up to date (sharded runs; docs/scaleout.md).
+  std::string failureMarker;
 
   bool valid() const { return problems.empty(); }
   const Output* findOutput(const std::string& kind) const;

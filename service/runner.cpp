@@ -101,6 +101,27 @@ class StagedOutputs {
   std::vector<std::pair<std::string, std::string>> order_;   // staging, final
 };
 
+// With --shard, processes on other hosts write to the same directories at the same time,
+// and the pid in a temp file's name says nothing about a process on another host: a
+// sharded run removes only temp and staging files untouched for this long (a temp file
+// lives from its first write to its rename, seconds for any product).
+constexpr double kShardStaleTempSeconds = 3600;
+
+int removeOldTempFiles(const std::string& dir, double ageSeconds) {
+  int removed = 0;
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.empty() || name[0] != '.' || name.find(".prtbake-tmp.") == std::string::npos) continue;
+    std::error_code tec;
+    const auto t = fs::last_write_time(e.path(), tec);
+    if (tec || std::chrono::duration<double>(now - t).count() < ageSeconds) continue;
+    if (fs::remove(e.path(), tec)) ++removed;
+  }
+  return removed;
+}
+
 // The reason an exception gives, without repeating the job id.
 std::string reasonOf(const Job& job, const std::exception& e) {
   if (auto* pe = dynamic_cast<const Error*>(&e); pe && pe->subject() == job.id) return pe->detail();
@@ -183,12 +204,23 @@ RunTotals Runner::run(const std::vector<JobFileRef>& refs) {
   for (const auto& f : files) jobCount += int(f.jobs.size());
   Progress progress(options_.progress && !options_.dryRun, jobCount);
   reporter_.setProgress(&progress);
+  const ShardSpec& shard = options_.shard;
+  size_t position = 0;  // k: whole job k belongs to shard k mod N (shard.h)
   for (const auto& f : files)
     for (const auto& job : f.jobs) {
+      const size_t k = position++;
       progress.begin(++index, job.label);
       const auto tJob = Clock::now();
       const int ranBefore = totals.ok + totals.failed;
-      runJob(job, totals);
+      if (!shard.active()) {
+        runJob(job, totals);
+      } else if (isSplit(job)) {
+        runJob(partialJob(job, shard), totals);
+      } else if (shardOfJob(k, shard.count) == shard.index) {
+        Job owned = job;
+        if (!job.outputs.empty()) owned.failureMarker = failureMarkerPath(job, shard.index, shard.count);
+        runJob(owned, totals);
+      }
       progress.end(secondsSince(tJob), job.valid() && totals.ok + totals.failed > ranBefore);
     }
   progress.clearLine();
@@ -204,6 +236,14 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
                    {"type", job.type ? job.type->name : ""}});
   auto fail = [&](const std::string& reason) {
     ++totals.failed;
+    if (!job.failureMarker.empty() && !options_.dryRun) {
+      try {
+        writeFileAtomic(job.failureMarker, json{{"id", job.id}, {"job_file", job.jobFile},
+                                                {"parameters", job.params}, {"error", reason}}.dump(2) + "\n");
+      } catch (const std::exception&) {
+        // The missing partial result still keeps merge from using this shard.
+      }
+    }
     end["status"] = "failed";
     end["error"] = reason;
     end["seconds"] = secondsSince(t0);
@@ -221,13 +261,15 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   for (const auto& o : job.outputs) dirs.insert(dirOf(o.path));
   if (!options_.dryRun)
     for (const auto& d : dirs)
-      if (const int n = removeStaleTempFiles(d); n > 0)
+      if (const int n = options_.shard.active() ? removeOldTempFiles(d, kShardStaleTempSeconds) : removeStaleTempFiles(d);
+          n > 0)
         reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
 
   if (!options_.force) {
     const std::string why = whyOutOfDate(job);
     if (why.empty()) {
       ++totals.skipped;
+      if (!job.failureMarker.empty()) ::unlink(job.failureMarker.c_str());
       end["status"] = "skipped";
       end["seconds"] = secondsSince(t0);
       reporter_.status("[skipped] " + job.label + " (up to date)");
@@ -283,6 +325,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
     return;
   }
   ++totals.ok;
+  if (!job.failureMarker.empty()) ::unlink(job.failureMarker.c_str());
   const double seconds = secondsSince(t0);
   end["status"] = "ok";
   end["seconds"] = seconds;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "jobs.h"
+#include "shard.h"
 
 namespace prtbake::jobs {
 
@@ -42,6 +43,7 @@ struct RunOptions {
   std::set<std::string> only;     // --jobs: run only these ids (empty: all)
   std::string device;             // --device spec for the runtime
   bool progress = false;          // "[3/20] id ... ETA" on stderr (see progress.h)
+  ShardSpec shard;                // --shard I/N: run only shard I's part (shard.h)
 };
 
 struct JobFileRef {

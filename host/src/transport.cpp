@@ -101,6 +101,23 @@ cl::Kernel directKernel(Runtime& rt, const TransportOptions& o, bool visibility,
   return k;
 }
 
+// The size of the requested vertex range; throws UsageError when it leaves the mesh
+// or splits an interreflected job.
+size_t rangeSize(const Mesh& mesh, const TransportOptions& o) {
+  const size_t nv = mesh.vertexCount();
+  if (o.firstVertex > nv)
+    throw UsageError("vertex range", "first vertex " + std::to_string(o.firstVertex) + " is beyond the mesh's " +
+                                         std::to_string(nv) + " vertices");
+  const size_t count = o.vertexCount ? *o.vertexCount : nv - o.firstVertex;
+  if (count > nv - o.firstVertex)
+    throw UsageError("vertex range", std::to_string(count) + " vertices from " + std::to_string(o.firstVertex) +
+                                         " run past the mesh's " + std::to_string(nv) + " vertices");
+  if (o.mode == TransportMode::Interreflected && count != nv)
+    throw UsageError("vertex range", "interreflected transport needs every vertex (each bounce reads the "
+                                     "previous bounce of the whole mesh); compute the whole mesh");
+  return count;
+}
+
 }  // namespace
 
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
@@ -110,13 +127,30 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   TransportResult r;
   r.order = o.order;
   r.samples = o.samples;
-  r.vertexCount = mesh.vertexCount();
   r.device = rt.deviceLabel();
   const int nc = o.order * o.order;
-  const int nv = int(mesh.vertexCount());
+  const size_t first = o.firstVertex;
+  const size_t count = rangeSize(mesh, o);
+  const int nv = int(count);
+  r.vertexCount = count;
+  r.firstVertex = first;
   const bool rgb = detail::transportIsRgb(mesh, o);
   r.channels = rgb ? 3 : 1;
-  const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  if (count == 0) {
+    r.totalSeconds = since(tStart);
+    return r;
+  }
+  detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  if (count != mesh.vertexCount()) {
+    // Keep the range's origins and frames (computed from global indices); the BVH and
+    // everything else stay those of the whole mesh.
+    setup.origins.assign(setup.origins.begin() + 4 * first, setup.origins.begin() + 4 * (first + count));
+    setup.frames.assign(setup.frames.begin() + 12 * first, setup.frames.begin() + 12 * (first + count));
+    setup.verticesWithoutNormal = 0;
+    for (size_t v = 0; v < count; ++v)
+      if (setup.frames[12 * v + 8] == 0 && setup.frames[12 * v + 9] == 0 && setup.frames[12 * v + 10] == 0)
+        ++setup.verticesWithoutNormal;
+  }
   r.verticesWithoutNormal = setup.verticesWithoutNormal;
   const bool visibility = o.mode != TransportMode::Unshadowed;
   DeviceScene scene = prepare(rt, mesh, o, setup, visibility, r);

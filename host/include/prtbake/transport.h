@@ -49,6 +49,15 @@ struct TransportOptions {
   int packetWidth = 16;
   // Interreflected only: also return each bounce's T^(k) (TransportResult::bounceCoeffs).
   bool keepBounces = false;
+  // computeTransport only: the vertex range [firstVertex, firstVertex + vertexCount)
+  // to compute (vertexCount unset: up to the last vertex), traced against the whole
+  // mesh. Each vertex's rays depend only on its global index (frame rotation) and the
+  // seed, and one work-item computes one vertex, so the range's coefficients are
+  // bit-identical to the same vertices of a full run on the same device. An empty range
+  // returns an empty result. Interreflected transport needs every vertex's previous
+  // bounce, so it accepts only the whole mesh (UsageError otherwise).
+  size_t firstVertex = 0;
+  std::optional<size_t> vertexCount;
 };
 
 // Orders accepted by the transport product.
@@ -57,7 +66,8 @@ constexpr int kMaxTransportOrder = 8;
 struct TransportResult {
   int order = 0;
   int channels = 1;          // 1 (grey albedo) or 3 (coloured albedo, interreflected)
-  size_t vertexCount = 0;
+  size_t vertexCount = 0;     // vertices computed (the range's size)
+  size_t firstVertex = 0;    // global index of the first one (TransportOptions::firstVertex)
   std::vector<float> coeffs; // vertexCount × channels × order², vertex-major
   // Per-vertex standard error of the direct term (L2 norm over the coefficients),
   // for independent samples: √((N²/(4π)·v − |T|²)/N_s) with v the unoccluded
