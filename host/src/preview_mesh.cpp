@@ -17,6 +17,7 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr double kVerticalFovDeg = 35.0;  // of a landscape image (the narrower axis of a portrait one)
+constexpr double kFill = 0.9;             // the bounds' corners stay inside 90% of the frame
 constexpr size_t kLocalSize = 64;         // pixels per work-group (the traversal loops: PoCL runs it scalar)
 
 template <class T>
@@ -53,9 +54,19 @@ Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& o) {
   const double aspect = double(o.width) / double(o.height);
   double tanV = std::tan(0.5 * kVerticalFovDeg * kPi / 180), tanH = tanV * aspect;
   if (aspect < 1) tanH = std::tan(0.5 * kVerticalFovDeg * kPi / 180), tanV = tanH / aspect;
-  // The bounding sphere fits the narrower half-angle, with a 5% margin.
-  const double halfAngle = std::atan(std::min(tanV, tanH));
-  const double distance = 1.05 * radius / std::sin(halfAngle);
+  // The nearest distance that keeps the 8 corners of the bounds inside kFill of the
+  // frame (a corner q − centre at screen offsets (x, y) and depth offset z projects to
+  // x / (D + z)), and keeps every corner in front of the eye.
+  double distance = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    double q[3];
+    for (int k = 0; k < 3; ++k) q[k] = ((corner >> k) & 1 ? bmax[k] : bmin[k]) - c.centre[k];
+    const double x = q[0] * right[0] + q[1] * right[1] + q[2] * right[2];
+    const double y = q[0] * up[0] + q[1] * up[1] + q[2] * up[2];
+    const double z = q[0] * f[0] + q[1] * f[1] + q[2] * f[2];
+    distance = std::max({distance, std::abs(x) / (kFill * tanH) - z, std::abs(y) / (kFill * tanV) - z,
+                         0.05 * radius - z});
+  }
   for (int k = 0; k < 3; ++k) {
     c.eye[k] = c.centre[k] + distance * toEye[k];
     c.forward[k] = f[k];

@@ -77,8 +77,9 @@ struct MeshPreviewOptions {
   // in direction (sin yaw cos pitch, sin pitch, cos yaw cos pitch) from the centre and
   // looks at it: yaw 0, pitch 0 is the front view (looking along −Z), yaw 90 the side
   // view (from +X), pitch 90 the top view (from +Y, screen-up = −Z). Screen-right is
-  // (cos yaw, 0, −sin yaw). The distance frames the bounding sphere in the narrower
-  // field of view (vertical field of view 35° for landscape images).
+  // (cos yaw, 0, −sin yaw). Vertical field of view 35° (landscape; for a portrait
+  // image 35° is the horizontal one); the distance is the nearest at which the 8
+  // corners of the mesh's bounds lie within the central 90% of the frame.
   double yawDeg = 0, pitchDeg = 0;
   // Rotates the lighting (the environment and its SH, with the exact SH rotation of
   // sh_rotate.h) by this angle about `lightAxis` (right-handed: counter-clockwise
