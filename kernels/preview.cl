@@ -12,6 +12,12 @@
 //
 // Build options: SH_ORDER (the transport's order), CHANNELS (1 or 3), BG_ORDER (the
 // environment's order), SH_BACKGROUND (0 or 1).
+// Camera rays come from afar (the eye is a few bounding radii away), where the float
+// error of Möller–Trumbore's barycentrics grows to ~1e-5 on small triangles: with the
+// transport's 1e-6 edge tolerance a ray through a shared vertex could slip between the
+// triangles and show the far side. Rays start where they enter the root box, and edges
+// get a 1e-4 tolerance (silhouettes grow by 1e-4 of a triangle, invisible).
+#define BVH_EDGE_EPS 1e-4f
 #include "sh.clh"
 #include "bvh.clh"
 
@@ -31,7 +37,7 @@
 #define BG_COUNT (BG_ORDER * BG_ORDER)
 
 // width, height: image size; pixel (x, y) = work-item y·width + x, row 0 on top
-// camera:    4 float4: eye, forward (unit), right × tan(hfov/2), up × tan(vfov/2)
+// camera:    4 float4: (eye, scene radius), forward (unit), right × tan(hfov/2), up × tan(vfov/2)
 // nodes, tris: the BVH (bvh_types.h)
 // indices:   T × (i0, i1, i2, 0) vertex indices of every mesh triangle
 // albedo:    V × (r, g, b, 0) linear albedo
@@ -53,7 +59,9 @@ __kernel void preview_mesh(int width, int height, __global const float4* camera,
   const float3 eye = camera[0].xyz;
   const float3 d = normalize(camera[1].xyz + px * camera[2].xyz + py * camera[3].xyz);
   float bu = 0.0f, bv = 0.0f;
-  const int tri = bvh_closest(nodes, tris, eye, d, 3.0e38f, &bu, &bv);
+  const float enter = bvh_box_enter(nodes, eye, bvh_safe_inv(d), 3.0e38f);
+  const float3 origin = enter == INFINITY ? eye : eye + fmax(enter - 1e-3f * camera[0].w, 0.0f) * d;
+  const int tri = enter == INFINITY ? -1 : bvh_closest(nodes, tris, origin, d, 3.0e38f, &bu, &bv);
   float out[3] = {0.0f, 0.0f, 0.0f};
   if (tri >= 0) {
     const int4 idx = indices[tri];

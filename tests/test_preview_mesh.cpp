@@ -254,3 +254,44 @@ TEST_CASE("CLI preview mesh: output and errors", "[preview][mesh][cli]") {
   REQUIRE(r.exitCode == 2);
   REQUIRE_FALSE(test::fileExists(dir + "/bad.png"));
 }
+
+TEST_CASE("Mesh preview: camera rays do not slip between the triangles of a closed mesh", "[preview][mesh]") {
+  // Every pixel of a closed convex mesh must see a front face; a ray through a shared
+  // vertex that slipped through would see the inside of the far side (a back face).
+  Mesh fine = makeUvSphere(1.0, 96, 192);
+  TransportCoeffs t;
+  t.order = 1, t.channels = 1, t.vertexCount = fine.vertexCount();
+  t.coeffs.assign(t.vertexCount, 0.1f);
+  for (double yaw : {0.0, 37.0, 90.0}) {
+    for (double pitch : {0.0, 24.0}) {
+      MeshPreviewOptions o;
+      o.width = 320, o.height = 240;
+      o.yawDeg = yaw, o.pitchDeg = pitch;
+      const MeshPreviewResult r = renderMeshPreview(test::runtime(), fine, t, whiteEnvironment(1), o);
+      const double cy = std::cos(yaw * kPi / 180), sy = std::sin(yaw * kPi / 180);
+      const double cp = std::cos(pitch * kPi / 180), sp = std::sin(pitch * kPi / 180);
+      const double f[3] = {-sy * cp, -sp, -cy * cp}, right[3] = {cy, 0, -sy};
+      const double up[3] = {right[1] * f[2] - right[2] * f[1], right[2] * f[0] - right[0] * f[2],
+                            right[0] * f[1] - right[1] * f[0]};
+      const double tanV = std::tan(0.5 * 35 * kPi / 180), tanH = tanV * 4 / 3;
+      int backFaces = 0, hits = 0;
+      for (int y = 0; y < o.height; ++y)
+        for (int x = 0; x < o.width; ++x) {
+          const int tri = r.hitTriangle[size_t(y) * o.width + x];
+          if (tri < 0) continue;
+          ++hits;
+          const double px = (2 * (x + 0.5) / o.width - 1) * tanH, py = (1 - 2 * (y + 0.5) / o.height) * tanV;
+          double d[3], e1[3], e2[3];
+          const float* p0 = &fine.positions[3 * size_t(fine.indices[3 * size_t(tri)])];
+          const float* p1 = &fine.positions[3 * size_t(fine.indices[3 * size_t(tri) + 1])];
+          const float* p2 = &fine.positions[3 * size_t(fine.indices[3 * size_t(tri) + 2])];
+          for (int k = 0; k < 3; ++k) d[k] = f[k] + px * right[k] + py * up[k], e1[k] = p1[k] - p0[k], e2[k] = p2[k] - p0[k];
+          const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+          if (n[0] * d[0] + n[1] * d[1] + n[2] * d[2] > 0) ++backFaces;
+        }
+      INFO("yaw " << yaw << " pitch " << pitch << ": " << hits << " mesh pixels");
+      REQUIRE(hits > 1000);
+      REQUIRE(backFaces == 0);
+    }
+  }
+}

@@ -32,6 +32,7 @@ struct Camera {
   double eye[3], forward[3], right[3], up[3];  // right and up scaled by tan(fov/2)
   double vfovDeg;
   double centre[3];
+  double radius;
 };
 
 Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& o) {
@@ -44,6 +45,7 @@ Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& o) {
     radius += 0.25 * (bmax[k] - bmin[k]) * (bmax[k] - bmin[k]);
   }
   radius = std::max(std::sqrt(radius), 1e-6);
+  c.radius = radius;
   const double yaw = o.yawDeg * kPi / 180, pitch = o.pitchDeg * kPi / 180;
   const double toEye[3] = {std::sin(yaw) * std::cos(pitch), std::sin(pitch), std::cos(yaw) * std::cos(pitch)};
   const double right[3] = {std::cos(yaw), 0, -std::sin(yaw)};
@@ -135,6 +137,7 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   std::vector<float> camBuf(16, 0.0f);
   for (int k = 0; k < 3; ++k) {
     camBuf[k] = float(cam.eye[k]);
+    camBuf[3] = float(cam.radius);
     camBuf[4 + k] = float(cam.forward[k]);
     camBuf[8 + k] = float(cam.right[k]);
     camBuf[12 + k] = float(cam.up[k]);
