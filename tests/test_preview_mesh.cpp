@@ -295,3 +295,52 @@ TEST_CASE("Mesh preview: camera rays do not slip between the triangles of a clos
     }
   }
 }
+
+TEST_CASE("Job runner: png outputs of env, transport and lut jobs", "[preview][mesh][jobs]") {
+  const std::string dir = test::tempDir("previewjobs");
+  std::ofstream(dir + "/octa.obj") << "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+                                      "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+  writeShJson(dir + "/rad.json", upLobe(3), "{}");
+  // A small lat-long environment map (a .hdr) for the env job and as a preview_env.
+  {
+    std::ofstream hdr(dir + "/sky.hdr", std::ios::binary);
+    hdr << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 16 +X 32\n";
+    for (int y = 0; y < 16; ++y)
+      for (int x = 0; x < 32; ++x) hdr << char(y < 8 ? 200 : 60) << char(180) << char(160) << char(129);
+  }
+  std::ofstream(dir + "/jobs.json") << R"({"jobs": [
+    {"id": "env", "type": "env", "input": "sky.hdr", "outputs": {"json": "out/env.json", "png": "out/env.png"}},
+    {"id": "lut", "type": "lut", "outputs": {"exr": "out/lut.exr", "png": "out/lut.png"}, "size": 16, "samples": 64},
+    {"id": "mesh", "type": "transport", "input": "octa.obj", "samples": 64, "preview_env": "rad.json",
+     "outputs": {"npy": "out/t.npy", "png": "out/mesh.png"}},
+    {"id": "mesh-map", "type": "transport", "input": "octa.obj", "samples": 64, "preview_env": "sky.hdr",
+     "outputs": {"npy": "out/t2.npy", "png": "out/mesh2.png"}}
+  ]})";
+  auto r = test::runCli("run '" + dir + "/jobs.json' --quiet");
+  INFO(r.output);
+  REQUIRE(r.exitCode == 0);
+  for (const char* f : {"env.png", "lut.png", "mesh.png", "mesh2.png"}) REQUIRE(test::fileExists(dir + "/out/" + f));
+  // The preview environment is an input of the job (hashed in the manifest).
+  REQUIRE(slurp(dir + "/out/t.npy.manifest.json").find("rad.json") != std::string::npos);
+
+  // A png without preview_env, preview_env without png, a missing preview_env, irradiance SH.
+  ShCoeffs irr = upLobe(3);
+  irr.quantity = ShQuantity::Irradiance;
+  writeShJson(dir + "/irr.json", irr, "{}");
+  std::ofstream(dir + "/bad.json") << R"({"jobs": [
+    {"id": "a", "type": "transport", "input": "octa.obj", "outputs": {"png": "bad/a.png"}},
+    {"id": "b", "type": "transport", "input": "octa.obj", "preview_env": "rad.json", "outputs": {"npy": "bad/b.npy"}},
+    {"id": "c", "type": "transport", "input": "octa.obj", "preview_env": "nothere.json", "outputs": {"png": "bad/c.png"}},
+    {"id": "d", "type": "transport", "input": "octa.obj", "samples": 16, "preview_env": "irr.json",
+     "outputs": {"npy": "bad/d.npy", "png": "bad/d.png"}}
+  ]})";
+  r = test::runCli("run '" + dir + "/bad.json'");
+  INFO(r.output);
+  REQUIRE(r.exitCode == 1);
+  REQUIRE(r.output.find("job 'a': preview_env") != std::string::npos);
+  REQUIRE(r.output.find("job 'b': preview_env") != std::string::npos);
+  REQUIRE(r.output.find("nothere.json") != std::string::npos);
+  REQUIRE(r.output.find("irr.json") != std::string::npos);
+  REQUIRE_FALSE(test::fileExists(dir + "/bad/d.npy"));
+  REQUIRE_FALSE(test::fileExists(dir + "/bad/d.png"));
+}
