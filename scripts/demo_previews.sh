@@ -3,7 +3,7 @@
 # assets/ and the products of `prtbake run assets/demo.json` in out/demo/:
 #   demo_env.png    assets/sky.exr | its order-5 SH radiance (Hann window) | irradiance/pi
 #   demo_scene.png  assets/scene.gltf shaded with scene_transport.npy under sky_radiance.json,
-#                   the sky map behind it, seen from 30 deg toward +X and 15 deg above
+#                   the sky map behind it, seen from 50 deg toward -X (the sun to the right) and 12 deg above
 #   demo_lut.png    brdf_lut.exr, A and B over N.V and roughness
 # The exposures (in stops) suit the demo sky, whose sun dominates its mean radiance.
 # usage: scripts/demo_previews.sh   (PRTBAKE=path/to/prtbake to use another binary)
@@ -21,7 +21,7 @@ mkdir -p docs/images
 "$prtbake" preview env assets/sky.exr --order 5 --window hann --size 320 --exposure -4.5 \
   -o docs/images/demo_env.png
 "$prtbake" preview mesh assets/scene.gltf --transport "$demo/scene_transport.npy" \
-  --env "$demo/sky_radiance.json" --background assets/sky.exr --view 30,15 --size 640x400 \
-  --exposure -3.5 -o docs/images/demo_scene.png
+  --env "$demo/sky_radiance.json" --background assets/sky.exr --view -50,12 --size 640x400 \
+  --exposure -4 -o docs/images/demo_scene.png
 "$prtbake" preview lut "$demo/brdf_lut.exr" --size 192 -o docs/images/demo_lut.png
 ls -l docs/images/demo_env.png docs/images/demo_scene.png docs/images/demo_lut.png
