@@ -115,7 +115,7 @@ TEST_CASE("Mesh preview furnace: a convex mesh under a white environment shows i
   REQUIRE(maxErr < kFurnaceTol);
 }
 
-TEST_CASE("Mesh preview orientation: light from +Y lights the top; 180 deg about X swaps", "[preview][mesh]") {
+TEST_CASE("Mesh preview orientation: light from +Y lights the top, 180 deg about X swaps", "[preview][mesh]") {
   // Front view: +Y is up on screen. The lobe exp(6(y−1)) at order 4 leaves the
   // downward-facing half with a small (ringing) remainder only.
   const double kContrast = 5.0;

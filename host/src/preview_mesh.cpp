@@ -104,7 +104,10 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   Rotation rot;
   ShCoeffs light = radiance;
   if (o.lightRotationDeg != 0) {
-    const double a = o.lightRotationDeg * kPi / 180, s = std::sin(0.5 * a);
+    const double len = std::sqrt(o.lightAxis[0] * o.lightAxis[0] + o.lightAxis[1] * o.lightAxis[1] +
+                                 o.lightAxis[2] * o.lightAxis[2]);
+    if (!(len > 1e-12) || !std::isfinite(len)) throw UsageError("light axis", "must be a non-zero finite vector");
+    const double a = o.lightRotationDeg * kPi / 180, s = std::sin(0.5 * a) / len;
     rot = rotationFromQuaternion(std::cos(0.5 * a), o.lightAxis[0] * s, o.lightAxis[1] * s, o.lightAxis[2] * s);
     light = applyShRotation(radiance, shRotationExact(rot, radiance.order));
   }

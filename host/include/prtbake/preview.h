@@ -83,7 +83,8 @@ struct MeshPreviewOptions {
   double yawDeg = 0, pitchDeg = 0;
   // Rotates the lighting (the environment and its SH, with the exact SH rotation of
   // sh_rotate.h) by this angle about `lightAxis` (right-handed: counter-clockwise
-  // looking down the axis toward the origin). Default axis +Y (a turntable of light).
+  // looking down the axis toward the origin; any length but zero). Default axis +Y
+  // (a turntable of light).
   double lightRotationDeg = 0;
   std::array<double, 3> lightAxis{0, 1, 0};
   // Background: sampled from this map when set (rotated like the lighting), else the
