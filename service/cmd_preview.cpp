@@ -131,7 +131,9 @@ ShCoeffs readRadianceJson(const std::string& path) {
 
 int previewMesh(const CommandLine& cl, const std::string& input, const std::string& output) {
   const std::string transportPath = cl.get("transport"), envPath = cl.get("env"), bgPath = cl.get("background");
-  if (transportPath.empty()) throw UsageError("preview", "mesh previews need --transport T.npy");
+  const bool gltfInput = endsWith(input, ".gltf") || endsWith(input, ".glb");
+  if (transportPath.empty() && !gltfInput)
+    throw UsageError("preview", "mesh previews need --transport T.npy (or a glTF copy with _PRT_* attributes)");
   if (envPath.empty()) throw UsageError("preview", "mesh previews need --env SH.json (radiance coefficients)");
   MeshPreviewOptions o;
   parseImageSize(cl.get("size"), o);
@@ -141,7 +143,8 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
   tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
   // Everything is read and checked before the device starts.
   const Mesh mesh = loadMesh(input);
-  const TransportCoeffs t = readTransportNpy(transportPath, mesh.vertexCount());
+  const TransportCoeffs t =
+      transportPath.empty() ? readTransportGltf(mesh) : readTransportNpy(transportPath, mesh.vertexCount());
   const ShCoeffs radiance = readRadianceJson(envPath);
   EnvMap background;
   if (!bgPath.empty()) {
@@ -161,7 +164,8 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
                                            : "environment map") +
                            "; camera " + r.camera + "; " + light;
   std::vector<std::pair<std::string, std::string>> text = {
-      {"Description", what}, {"Source", input}, {"Transport", transportPath}, {"Environment", envPath}};
+      {"Description", what}, {"Source", input}, {"Transport", transportPath.empty() ? input : transportPath},
+      {"Environment", envPath}};
   if (!bgPath.empty()) text.push_back({"Background", bgPath});
   writePreviewPng(output, r.image, tm, text);
   char timing[160];
@@ -184,7 +188,8 @@ PRTBAKE_COMMAND(Command{
     "preview", "render PNG previews of products (env, lut, mesh)",
     "prtbake preview env (ENVMAP | SH.json) -o OUT.png [--order N] [--window W] [--size W] [--exposure EV]\n"
     "       prtbake preview lut LUT.exr -o OUT.png [--size S]\n"
-    "       prtbake preview mesh MESH --transport T.npy --env SH.json -o OUT.png [--size WxH]\n"
+    "       prtbake preview mesh MESH (--transport T.npy | a glTF copy with _PRT_* attributes) --env SH.json\n"
+    "               -o OUT.png [--size WxH]\n"
     "               [--view front|side|top|YAW,PITCH] [--rotate-light DEG] [--exposure EV] [--background ENVMAP]\n"
     "env: lat-long panels: the environment, its SH radiance reconstruction, and irradiance/pi.\n"
     "lut: each channel over N.V (x) and roughness (y, upward) with labelled axes.\n"
@@ -197,7 +202,7 @@ PRTBAKE_COMMAND(Command{
      {"layout", true, "environment layout, as for prtbake env"},
      {"yaw", true, "rotate the environment about +Y (degrees)"},
      {"size", true, "panel width in pixels (W or WxH); mesh: image size WxH (default 800x600)"},
-     {"transport", true, "mesh: the transport .npy written by prtbake transport"},
+     {"transport", true, "mesh: the transport .npy written by prtbake transport (not needed for a glTF copy written by --gltf)"},
      {"env", true, "mesh: the environment's radiance SH JSON written by prtbake env"},
      {"background", true, "mesh: an environment map to show behind the mesh (default: the SH reconstruction)"},
      {"view", true, "mesh: front|side|top|YAW,PITCH in degrees (default front)"},

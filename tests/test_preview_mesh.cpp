@@ -344,3 +344,24 @@ TEST_CASE("Job runner: png outputs of env, transport and lut jobs", "[preview][m
   REQUIRE_FALSE(test::fileExists(dir + "/bad/d.npy"));
   REQUIRE_FALSE(test::fileExists(dir + "/bad/d.png"));
 }
+
+TEST_CASE("Transport from a glTF copy: the _PRT_ attributes read back exactly", "[preview][mesh]") {
+  const std::string dir = test::tempDir("previewgltf");
+  const Mesh scene = loadMesh(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf");
+  for (TransportMode mode : {TransportMode::Shadowed, TransportMode::Interreflected}) {
+    TransportOptions o;
+    o.mode = mode;
+    o.order = 3;
+    o.samples = 16;
+    o.bounces = 1;
+    const TransportResult r = computeTransport(test::runtime(), scene, o);
+    writeTransportGltf(dir + "/copy.glb", scene, r);
+    const Mesh copy = loadMesh(dir + "/copy.glb");
+    REQUIRE(copy.vertexCount() == scene.vertexCount());
+    const TransportCoeffs t = readTransportGltf(copy);
+    REQUIRE((t.order == 3 && t.channels == r.channels && t.vertexCount == r.vertexCount));
+    REQUIRE(t.coeffs == r.coeffs);
+  }
+  // The input itself has no transport attributes.
+  REQUIRE_THROWS_AS(readTransportGltf(scene), InputError);
+}

@@ -71,6 +71,14 @@ struct TransportCoeffs {
 // a vertex count other than the mesh's.
 TransportCoeffs readTransportNpy(const std::string& path, size_t expectedVertices = 0);
 
+// Reads the transport back from a glTF copy written by writeTransportGltf (the
+// _PRT_T0, _PRT_T1, … or _PRT_R*/_PRT_G*/_PRT_B* VEC4 attributes of every primitive),
+// for `mesh` loaded from that same file. The order is the largest n with n² ≤ 4 ×
+// (attributes per channel): the zero padding of the last attribute is not read.
+// Throws InputError(mesh.sourcePath, ...) when a primitive lacks the attributes or
+// they disagree between primitives.
+TransportCoeffs readTransportGltf(const Mesh& mesh);
+
 struct MeshPreviewOptions {
   int width = 800, height = 600;
   // Camera orbit around the centre of the mesh's bounds, in degrees. The camera sits
