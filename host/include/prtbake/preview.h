@@ -113,6 +113,9 @@ struct MeshPreviewResult {
 //   T = (1−u−v) T_a + u T_b + v T_c   (each channel; grey transport serves all three)
 //   ρ = (1−u−v) ρ_a + u ρ_b + v ρ_c   (mesh albedo)
 //   L_o[c] = ρ[c] Σ_i l_i[c] T_i[c]   (l: the radiance coefficients, rotated)
+// The sum runs over the shorter of the two orders (the transport's order bounds what
+// the lighting can contribute; a lower-order environment contributes zero above its
+// bands); the background uses all of the environment's bands.
 // Back faces are shaded with the same transport (it is baked per vertex, not per side).
 // Throws InputError when the coefficients do not match the mesh or radiance is not
 // radiance, UsageError for bad options.
