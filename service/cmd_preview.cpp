@@ -1,10 +1,15 @@
-// prtbake preview: PNG images of baked products (environment SH, LUTs).
+// prtbake preview: PNG images of baked products (environment SH, LUTs, the mesh lit by its transport).
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
+#include "prtbake/mesh.h"
 #include "prtbake/preview.h"
 #include "prtbake/runtime.h"
 #include "prtbake/sh.h"
@@ -83,26 +88,125 @@ int previewLut(const CommandLine& cl, const std::string& input, const std::strin
   return 0;
 }
 
+// --view front|side|top|YAW,PITCH (degrees).
+void parseView(const std::string& s, MeshPreviewOptions& o) {
+  if (s.empty() || s == "front") o.yawDeg = 0, o.pitchDeg = 0;
+  else if (s == "side") o.yawDeg = 90, o.pitchDeg = 0;
+  else if (s == "top") o.yawDeg = 0, o.pitchDeg = 90;
+  else {
+    char* end = nullptr;
+    o.yawDeg = std::strtod(s.c_str(), &end);
+    if (end == s.c_str() || *end != ',') throw UsageError("--view", "expected front, side, top or YAW,PITCH, got '" + s + "'");
+    const char* p = end + 1;
+    o.pitchDeg = std::strtod(p, &end);
+    if (end == p || *end != '\0' || !std::isfinite(o.yawDeg) || !(o.pitchDeg >= -90 && o.pitchDeg <= 90))
+      throw UsageError("--view", "expected YAW,PITCH in degrees with PITCH in [-90, 90], got '" + s + "'");
+  }
+}
+
+// --size WxH (or W: height 3/4 of it).
+void parseImageSize(const std::string& s, MeshPreviewOptions& o) {
+  if (s.empty()) return;
+  char* end = nullptr;
+  const long w = std::strtol(s.c_str(), &end, 10);
+  long h = w * 3 / 4;
+  if (end != s.c_str() && *end == 'x') {
+    const char* p = end + 1;
+    h = std::strtol(p, &end, 10);
+    if (end == p) h = -1;
+  }
+  if (end == s.c_str() || *end != '\0' || w < 8 || w > 16384 || h < 8 || h > 16384)
+    throw UsageError("--size", "expected WxH with W and H in [8, 16384], got '" + s + "'");
+  o.width = int(w), o.height = int(h);
+}
+
+// The environment's radiance SH: a JSON written by prtbake env (must hold radiance).
+ShCoeffs readRadianceJson(const std::string& path) {
+  ShCoeffs sh = readShJson(path);
+  if (sh.quantity != ShQuantity::Radiance)
+    throw InputError(path, "the mesh preview needs radiance coefficients (this file holds " +
+                               std::string(toString(sh.quantity)) + "); run prtbake env with --quantity radiance");
+  return sh;
+}
+
+int previewMesh(const CommandLine& cl, const std::string& input, const std::string& output) {
+  const std::string transportPath = cl.get("transport"), envPath = cl.get("env"), bgPath = cl.get("background");
+  const bool gltfInput = endsWith(input, ".gltf") || endsWith(input, ".glb");
+  if (transportPath.empty() && !gltfInput)
+    throw UsageError("preview", "mesh previews need --transport T.npy (or a glTF copy with _PRT_* attributes)");
+  if (envPath.empty()) throw UsageError("preview", "mesh previews need --env SH.json (radiance coefficients)");
+  MeshPreviewOptions o;
+  parseImageSize(cl.get("size"), o);
+  parseView(cl.get("view"), o);
+  o.lightRotationDeg = cl.getDouble("rotate-light", 0.0, -36000.0, 36000.0);
+  ToneMap tm;
+  tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
+  // Everything is read and checked before the device starts.
+  const Mesh mesh = loadMesh(input);
+  const TransportCoeffs t =
+      transportPath.empty() ? readTransportGltf(mesh) : readTransportNpy(transportPath, mesh.vertexCount());
+  const ShCoeffs radiance = readRadianceJson(envPath);
+  EnvMap background;
+  if (!bgPath.empty()) {
+    EnvLoadOptions lo;
+    lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
+    background = loadEnvironment(bgPath, lo);
+    o.background = &background;
+  }
+  Runtime rt(cl.device());
+  const MeshPreviewResult r = renderMeshPreview(rt, mesh, t, radiance, o);
+  char light[160];
+  std::snprintf(light, sizeof light, "lighting rotated by %g deg about +Y (right-handed)", o.lightRotationDeg);
+  const std::string what = "prtbake mesh preview: L = albedo * sum_i l_i T_i (transport order " +
+                           std::to_string(t.order) + ", " + (t.channels == 3 ? "RGB" : "grey") +
+                           ", interpolated per pixel), background = " +
+                           (bgPath.empty() ? "SH radiance reconstruction (order " + std::to_string(radiance.order) + ")"
+                                           : "environment map") +
+                           "; camera " + r.camera + "; " + light;
+  std::vector<std::pair<std::string, std::string>> text = {
+      {"Description", what}, {"Source", input}, {"Transport", transportPath.empty() ? input : transportPath},
+      {"Environment", envPath}};
+  if (!bgPath.empty()) text.push_back({"Background", bgPath});
+  writePreviewPng(output, r.image, tm, text);
+  char timing[160];
+  std::snprintf(timing, sizeof timing, " (%zu triangles, BVH %.3f s, kernel %.3f s)", r.triangles, r.bvhSeconds,
+                r.kernelSeconds);
+  status(cl, "wrote " + output + timing);
+  return 0;
+}
+
 int runPreview(const CommandLine& cl) {
   const std::string kind = cl.positional.at(0), input = cl.positional.at(1), output = cl.get("output");
   if (output.empty()) throw UsageError("preview", "missing -o OUT.png");
   if (kind == "env") return previewEnv(cl, input, output);
   if (kind == "lut") return previewLut(cl, input, output);
-  throw UsageError("preview", "unknown kind '" + kind + "' (expected env or lut)");
+  if (kind == "mesh") return previewMesh(cl, input, output);
+  throw UsageError("preview", "unknown kind '" + kind + "' (expected env, lut or mesh)");
 }
 
 PRTBAKE_COMMAND(Command{
-    "preview", "render PNG previews of products (env, lut)",
+    "preview", "render PNG previews of products (env, lut, mesh)",
     "prtbake preview env (ENVMAP | SH.json) -o OUT.png [--order N] [--window W] [--size W] [--exposure EV]\n"
     "       prtbake preview lut LUT.exr -o OUT.png [--size S]\n"
+    "       prtbake preview mesh MESH (--transport T.npy | a glTF copy with _PRT_* attributes) --env SH.json\n"
+    "               -o OUT.png [--size WxH]\n"
+    "               [--view front|side|top|YAW,PITCH] [--rotate-light DEG] [--exposure EV] [--background ENVMAP]\n"
     "env: lat-long panels: the environment, its SH radiance reconstruction, and irradiance/pi.\n"
-    "lut: each channel over N.V (x) and roughness (y, upward) with labelled axes.",
+    "lut: each channel over N.V (x) and roughness (y, upward) with labelled axes.\n"
+    "mesh: the mesh shaded with its baked transport under the environment's radiance SH\n"
+    "      (L = albedo * sum_i l_i T_i), the environment as background; --rotate-light turns\n"
+    "      the lighting about +Y (right-handed, degrees) with the exact SH rotation.",
     {{"output", true, "output PNG (also -o)"},
      {"order", true, "SH order of the reconstruction (env map input; default 3)"},
      {"window", true, "none|hann|lanczos|auto (env map input)"},
      {"layout", true, "environment layout, as for prtbake env"},
      {"yaw", true, "rotate the environment about +Y (degrees)"},
-     {"size", true, "panel width in pixels (W or WxH)"},
+     {"size", true, "panel width in pixels (W or WxH); mesh: image size WxH (default 800x600)"},
+     {"transport", true, "mesh: the transport .npy written by prtbake transport (not needed for a glTF copy written by --gltf)"},
+     {"env", true, "mesh: the environment's radiance SH JSON written by prtbake env"},
+     {"background", true, "mesh: an environment map to show behind the mesh (default: the SH reconstruction)"},
+     {"view", true, "mesh: front|side|top|YAW,PITCH in degrees (default front)"},
+     {"rotate-light", true, "mesh: rotate the lighting about +Y by DEG degrees"},
      {"exposure", true, "exposure in stops before the sRGB curve (default 0)"}},
     2, 2, runPreview});
 

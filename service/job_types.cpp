@@ -11,11 +11,19 @@
 #include "prtbake/hash.h"
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
+#include "prtbake/preview.h"
 #include "prtbake/transport.h"
 #include "prtbake/sh.h"
 
 namespace prtbake::jobs {
 namespace {
+
+// The transport job's preview: a front view turned 30° toward +X, from 20° above.
+constexpr double kPreviewYawDeg = 30, kPreviewPitchDeg = 20;
+
+bool endsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -69,6 +77,16 @@ ExecResult runEnv(const Job& job, ExecContext& ctx) {
     writeShJson(ctx.output("json"), r.coeffs, meta.dump());
   }
   if (ctx.wants("games202")) writeGames202Light(ctx.output("games202"), r.coeffs);
+  if (ctx.wants("png")) {
+    // The preview shows the (windowed) radiance whatever quantity the json holds.
+    const ShCoeffs radiance = applyWindowAndQuantity(r.radiance, r.windowWeights, ShQuantity::Radiance);
+    const LinearImage img = renderEnvPreview(&env, radiance, 512);
+    writePreviewPng(ctx.output("png"), img, ToneMap{},
+                    {{"Description", "prtbake environment preview, lat-long panels (+Y up, centre column looks along +Z): "
+                                     "environment | SH radiance reconstruction | irradiance/pi (order " +
+                                         std::to_string(options.order) + ", window " + toString(options.window) + ")"},
+                     {"Source", job.input}});
+  }
   return result;
 }
 
@@ -93,7 +111,42 @@ namespace {
 ExecResult runTransport(const Job& job, ExecContext& ctx) {
   const TransportOptions options = transportOptionsFrom(job.params);
   const Mesh mesh = loadMesh(job.input);
+  // The preview's environment is read before the transport runs (a bad file fails fast).
+  std::vector<std::string> previewFiles;
+  ShCoeffs previewRadiance;
+  EnvMap previewMap;
+  const bool previewFromMap = ctx.wants("png") && !endsWith(p["preview_env"].get<std::string>(), ".json");
+  if (ctx.wants("png")) {
+    const std::string envPath = p["preview_env"].get<std::string>();
+    if (previewFromMap) {
+      previewMap = loadEnvironment(envPath, EnvLoadOptions{});
+      previewFiles = previewMap.inputFiles;
+    } else {
+      previewRadiance = readShJson(envPath);
+      if (previewRadiance.quantity != ShQuantity::Radiance)
+        throw InputError(envPath, std::string("preview_env must hold radiance coefficients (this file holds ") +
+                                      toString(previewRadiance.quantity) + ")");
+      previewFiles = {envPath};
+    }
+  }
   const TransportResult r = computeTransport(ctx.runtime(), mesh, options);
+  LinearImage preview;
+  std::string previewCamera;
+  if (ctx.wants("png")) {
+    if (previewFromMap) {
+      EnvProjectOptions po;
+      po.order = options.order;
+      previewRadiance = projectEnvironment(ctx.runtime(), previewMap, po).radiance;
+    }
+    TransportCoeffs t;
+    t.order = r.order, t.channels = r.channels, t.vertexCount = r.vertexCount, t.coeffs = r.coeffs;
+    MeshPreviewOptions po;
+    po.yawDeg = kPreviewYawDeg, po.pitchDeg = kPreviewPitchDeg;
+    po.background = previewFromMap ? &previewMap : nullptr;
+    MeshPreviewResult mp = renderMeshPreview(ctx.runtime(), mesh, t, previewRadiance, po);
+    preview = std::move(mp.image);
+    previewCamera = mp.camera;
+  }
   // Every output's bytes first, then the writes: a failure leaves nothing behind.
   std::vector<std::pair<std::string, std::string>> files;
   if (ctx.wants("npy")) files.emplace_back(ctx.output("npy"), transportNpyBytes(r));
@@ -101,8 +154,18 @@ ExecResult runTransport(const Job& job, ExecContext& ctx) {
   if (ctx.wants("gltf")) files.emplace_back(ctx.output("gltf"), transportGltfBytes(ctx.output("gltf"), mesh, r));
   if (ctx.wants("json")) files.emplace_back(ctx.output("json"), transportSidecarBytes(job.input, mesh, options, r));
   for (const auto& [path, bytes] : files) writeFileAtomic(path, bytes);
+  if (ctx.wants("png"))
+    writePreviewPng(ctx.output("png"), preview, ToneMap{},
+                    {{"Description", "prtbake mesh preview: L = albedo * sum_i l_i T_i (transport order " +
+                                         std::to_string(r.order) + "), background = " +
+                                         (previewFromMap ? "environment map" : "SH radiance reconstruction") +
+                                         "; camera " + previewCamera},
+                     {"Source", job.input},
+                     {"Environment", p["preview_env"].get<std::string>()}});
   ExecResult result;
-  result.inputFiles = filesRead(job, mesh.inputFiles);
+  std::vector<std::string> read = mesh.inputFiles;
+  read.insert(read.end(), previewFiles.begin(), previewFiles.end());
+  result.inputFiles = filesRead(job, read);
   result.report = {{"vertices", r.vertexCount},
                    {"channels", r.channels},
                    {"samples", r.samples},
@@ -132,6 +195,14 @@ ExecResult runLut(const Job& job, ExecContext& ctx) {
   const std::string exr = ctx.output("exr");
   const std::string sidecar = ctx.wants("json") ? ctx.output("json") : std::string();
   writeLutFiles(lut, exr, sidecar, p["half"].get<bool>());
+  if (ctx.wants("png")) {
+    std::vector<LutChannel> channels = {{"R = A (scale)", lut.a.data()}, {"G = B (bias)", lut.b.data()}};
+    if (!lut.third.empty()) channels.push_back({"B = third table", lut.third.data()});
+    const LinearImage img = renderLutPreview(lut.size, channels, "N.V", "rough", 0.0f, 1.0f, 256);
+    writePreviewPng(ctx.output("png"), img, ToneMap{},
+                    {{"Description", "prtbake LUT preview: x = N.V (0..1, left to right), y = roughness (0..1, bottom "
+                                     "to top), grey = value in [0,1]"}});
+  }
   ExecResult result;
   result.inputFiles = {};
   result.report = {{"size", lut.size},
@@ -160,7 +231,7 @@ std::vector<JobType> makeJobTypes() {
   JobType env;
   env.name = "env";
   env.input = InputKind::FileOrDirectory;
-  env.outputKinds = {"json", "games202"};
+  env.outputKinds = {"json", "games202", "png"};
   env.keys = {integer("order", 3, 1, kMaxShOrder),
               choice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"}),
               choice("quantity", "radiance", {"radiance", "irradiance", "irradiance_over_pi"}),
@@ -173,14 +244,15 @@ std::vector<JobType> makeJobTypes() {
   JobType transport;
   transport.name = "transport";
   transport.input = InputKind::File;
-  transport.outputKinds = {"npy", "gltf", "games202", "json"};
+  transport.outputKinds = {"npy", "gltf", "games202", "json", "png"};
   transport.keys = {choice("mode", "shadowed", {"unshadowed", "shadowed", "interreflected"}),
                     integer("bounces", 3, 1, 64),
                     number("bounce_tolerance", 1e-4, 0.0, 1.0),
                     integer("order", 3, 1, kMaxShOrder),
                     integer("samples", 1024, 1, 1 << 24),
                     integer("seed", 0, 0, 4294967295.0),
-                    number("tolerance", nullptr, 1e-9, 1.0)};
+                    number("tolerance", nullptr, 1e-9, 1.0),
+                    {"preview_env", ValueKind::Path, nullptr, 0, 0, {}}};
   transport.check = [](const json& raw, const json& p) {
     std::vector<std::pair<std::string, std::string>> problems;
     // --samples N | --tolerance E: a tolerance picks the sample count itself.
@@ -193,6 +265,11 @@ std::vector<JobType> makeJobTypes() {
     if (raw.contains("split") && raw["split"] == json(true) && p["mode"] == "interreflected")
       problems.push_back({"split", "interreflected jobs cannot be split by vertices (each bounce needs every "
                                    "vertex's previous bounce); remove split to run the job whole in one shard"});
+    const bool png = raw.contains("outputs") && raw["outputs"].is_object() && raw["outputs"].contains("png");
+    if (png && !raw.contains("preview_env"))
+      problems.push_back({"preview_env", "a png output needs preview_env (a radiance SH JSON or an environment map)"});
+    if (!png && raw.contains("preview_env"))
+      problems.push_back({"preview_env", "only applies with a png output"});
     return problems;
   };
   transport.execute = runTransport;
@@ -202,7 +279,7 @@ std::vector<JobType> makeJobTypes() {
   JobType lut;
   lut.name = "lut";
   lut.input = InputKind::None;
-  lut.outputKinds = {"exr", "json"};
+  lut.outputKinds = {"exr", "json", "png"};
   lut.keys = {integer("size", 128, 1, 8192),
               integer("samples", 1024, 1, 1 << 24),
               choice("ndf", "ggx", {"ggx", "beckmann"}),

@@ -89,6 +89,10 @@ std::string checkValue(const KeySpec& k, const json& v, json* normalised) {
       *normalised = s;
       return "";
     }
+    case ValueKind::Path:
+      if (!v.is_string() || v.get<std::string>().empty()) return "expected a path, got " + shown(v);
+      *normalised = v;
+      return "";
   }
   return "";
 }
@@ -132,6 +136,12 @@ class JobValidator {
       json value;
       const std::string what = checkValue(k, *it, &value);
       if (!what.empty()) problem(k.name, what);
+      if (what.empty() && k.kind == ValueKind::Path) {
+        value = resolve(value.get<std::string>());
+        struct stat st {};
+        if (::stat(value.get<std::string>().c_str(), &st) != 0)
+          problem(k.name, "file does not exist: " + value.get<std::string>());
+      }
       params[k.name] = value;
     }
     checkInput(j, &params);

@@ -23,7 +23,8 @@ namespace prtbake::jobs {
 
 using nlohmann::json;
 
-enum class ValueKind { Integer, Number, Boolean, Choice };
+// Path: a file that must exist, relative paths resolved like `input`.
+enum class ValueKind { Integer, Number, Boolean, Choice, Path };
 
 // One key of a job type, named and typed like the command-line option it mirrors.
 struct KeySpec {

@@ -137,7 +137,7 @@ TEST_CASE("queue: a job file with problems ends in failed/ with a log naming the
   CHECK(fileExists(spool + "/failed/syntax.json"));
   const std::string log = readText(spool + "/failed/typo.log");
   CHECK_THAT(log, Catch::Contains("typo.json: job 't': input: file does not exist: " + spool + "/pending/sky.exr"));
-  CHECK_THAT(log, Catch::Contains("typo.json: job 't': outputs.jsn: not an output of env jobs (expected json, games202) (did you mean 'json'?)"));
+  CHECK_THAT(log, Catch::Contains("typo.json: job 't': outputs.jsn: not an output of env jobs (expected json, games202, png) (did you mean 'json'?)"));
   CHECK_THAT(readText(spool + "/failed/syntax.log"), Catch::Contains("parse error at line 1"));
   CHECK(fileExists(spool + "/pending/.partial.json"));
   CHECK(fileExists(spool + "/pending/notes.txt"));

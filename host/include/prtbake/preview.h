@@ -6,12 +6,15 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "prtbake/env_sh.h"
 #include "prtbake/envmap.h"
+#include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
 
 namespace prtbake {
 
@@ -50,6 +53,74 @@ struct ToneMap {
 // Writes the PNG atomically; `text` adds tEXt chunks (key, value).
 void writePreviewPng(const std::string& path, const LinearImage& image, const ToneMap& toneMap,
                      const std::vector<std::pair<std::string, std::string>>& text = {});
+
+// --- mesh preview: the mesh lit by the baked transport, as a real-time engine shades it ---
+//
+// Per-vertex transport coefficients (DESIGN.md "Transport"): grey [V, n²] or RGB [V, 3, n²],
+// vertex-major, as written by `prtbake transport` (.npy) and TransportResult::coeffs.
+struct TransportCoeffs {
+  int order = 0;           // n: n² coefficients per channel
+  int channels = 1;        // 1 (grey) or 3 (RGB)
+  size_t vertexCount = 0;
+  std::vector<float> coeffs;  // vertexCount × channels × order²
+};
+
+// Reads a transport .npy (float32 little-endian, C order, shape [V, n²] or [V, 3, n²]).
+// Throws InputError(path, ...) for a missing or malformed file, another dtype or
+// shape, a coefficient count that is not a square, or, when expectedVertices > 0,
+// a vertex count other than the mesh's.
+TransportCoeffs readTransportNpy(const std::string& path, size_t expectedVertices = 0);
+
+// Reads the transport back from a glTF copy written by writeTransportGltf (the
+// _PRT_T0, _PRT_T1, … or _PRT_R*/_PRT_G*/_PRT_B* VEC4 attributes of every primitive),
+// for `mesh` loaded from that same file. The order is the largest n with n² ≤ 4 ×
+// (attributes per channel): the zero padding of the last attribute is not read.
+// Throws InputError(mesh.sourcePath, ...) when a primitive lacks the attributes or
+// they disagree between primitives.
+TransportCoeffs readTransportGltf(const Mesh& mesh);
+
+struct MeshPreviewOptions {
+  int width = 800, height = 600;
+  // Camera orbit around the centre of the mesh's bounds, in degrees. The camera sits
+  // in direction (sin yaw cos pitch, sin pitch, cos yaw cos pitch) from the centre and
+  // looks at it: yaw 0, pitch 0 is the front view (looking along −Z), yaw 90 the side
+  // view (from +X), pitch 90 the top view (from +Y, screen-up = −Z). Screen-right is
+  // (cos yaw, 0, −sin yaw). Vertical field of view 35° (landscape; for a portrait
+  // image 35° is the horizontal one); the distance is the nearest at which the 8
+  // corners of the mesh's bounds lie within the central 90% of the frame.
+  double yawDeg = 0, pitchDeg = 0;
+  // Rotates the lighting (the environment and its SH, with the exact SH rotation of
+  // sh_rotate.h) by this angle about `lightAxis` (right-handed: counter-clockwise
+  // looking down the axis toward the origin; any length but zero). Default axis +Y
+  // (a turntable of light).
+  double lightRotationDeg = 0;
+  std::array<double, 3> lightAxis{0, 1, 0};
+  // Background: sampled from this map when set (rotated like the lighting), else the
+  // SH radiance reconstruction in each pixel's view direction.
+  const EnvMap* background = nullptr;
+};
+
+struct MeshPreviewResult {
+  LinearImage image;            // linear radiance, before tone mapping
+  std::vector<int32_t> hitTriangle;  // per pixel: the mesh triangle seen, or −1 (background)
+  double bvhSeconds = 0, kernelSeconds = 0, backgroundSeconds = 0;
+  size_t triangles = 0;
+  std::string camera;           // "eye (x, y, z), looking at (x, y, z), vfov D deg" (metadata)
+};
+
+// Renders one camera ray per pixel centre through the transport BVH (bvh.h). At the
+// nearest hit (triangle vertices a, b, c, barycentrics (1−u−v, u, v)):
+//   T = (1−u−v) T_a + u T_b + v T_c   (each channel; grey transport serves all three)
+//   ρ = (1−u−v) ρ_a + u ρ_b + v ρ_c   (mesh albedo)
+//   L_o[c] = ρ[c] Σ_i l_i[c] T_i[c]   (l: the radiance coefficients, rotated)
+// The sum runs over the shorter of the two orders (the transport's order bounds what
+// the lighting can contribute; a lower-order environment contributes zero above its
+// bands); the background uses all of the environment's bands.
+// Back faces are shaded with the same transport (it is baked per vertex, not per side).
+// Throws InputError when the coefficients do not match the mesh or radiance is not
+// radiance, UsageError for bad options.
+MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const TransportCoeffs& transport,
+                                    const ShCoeffs& radiance, const MeshPreviewOptions& options);
 
 // Draws `text` with a small vector font into a linear image at (x, y), scaled.
 void drawText(LinearImage& image, int x, int y, const std::string& text, float value, int scale = 1);
