@@ -109,7 +109,8 @@ TransportOptions transportOptionsFrom(const json& p) {
 namespace {
 
 ExecResult runTransport(const Job& job, ExecContext& ctx) {
-  const TransportOptions options = transportOptionsFrom(job.params);
+  const json& p = job.params;
+  const TransportOptions options = transportOptionsFrom(p);
   const Mesh mesh = loadMesh(job.input);
   // The preview's environment is read before the transport runs (a bad file fails fast).
   std::vector<std::string> previewFiles;
