@@ -148,7 +148,7 @@ void validateLutOptions(const LutOptions& o) {
   if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
     throw UsageError("--tolerance", "must be a finite number ≥ 0");
   if (o.tolerance > 0 && (o.toleranceMaxSamples < 4 * kLutMinReplicaSamples || o.toleranceMaxSamples > kLutMaxSamples))
-    throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [64, " +
+    throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [" + std::to_string(4 * kLutMinReplicaSamples) + ", " +
                                           std::to_string(kLutMaxSamples) + "]");
   if (o.cloth && o.multiscatter)
     throw UsageError("--cloth", "the B channel holds one third table: choose --cloth or --multiscatter");

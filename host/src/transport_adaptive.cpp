@@ -16,6 +16,7 @@
 
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
+#include "prtbake/sh.h"
 #include "transport_direct.h"
 #include "transport_setup.h"
 
@@ -82,10 +83,18 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
   r.stdError.assign(nv, 0.0f);
   r.errorEstimate.assign(nv, 0.0f);
   r.samplesPerVertex.assign(nv, 0);
+  // Vertices that cannot be occluded get the closed form (Funk–Hecke: the clamped
+  // cosine rotated to the normal), exact and sample-free; the others are sampled.
   std::vector<uint32_t> active;
   for (size_t v = 0; v < nv; ++v) {
     const float* n = &setup0.frames[12 * v + 8];
-    if (n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 0) active.push_back(uint32_t(v));
+    if (!(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 0)) continue;
+    if (visibility && unocc[v]) {
+      const auto c = clampedCosineProjected(o.order, n[0], n[1], n[2]);
+      for (int k = 0; k < nc; ++k) r.coeffs[v * nc + k] = float(c[k]);
+      continue;
+    }
+    active.push_back(uint32_t(v));
   }
   const auto tKernel = Clock::now();
   for (int round = 0; !active.empty(); ++round) {
