@@ -6,6 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iterator>
+#include <string>
 #include <vector>
 
 #include "prtbake/lut.h"
@@ -146,4 +149,26 @@ TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
   // slowly than one n-point set, and the adaptive maximum error is set by a few
   // low-roughness texels whose rare zero-weight samples all replicas can miss
   // (docs/accuracy.md).
+}
+
+TEST_CASE("Tolerance: command line and sidecars", "[tolerance][cli]") {
+  const std::string dir = test::tempDir("tolerance-cli");
+  auto both = test::runCli("lut -o '" + dir + "/x.exr' --samples 64 --tolerance 1e-2");
+  CHECK(both.exitCode == 2);
+  CHECK_THAT(both.output, Catch::Contains("cannot be combined with --samples"));
+  auto lut = test::runCli("lut -o '" + dir + "/l.exr' --size 8 --tolerance 1e-2 --quiet");
+  REQUIRE(lut.exitCode == 0);
+  std::ifstream lj(dir + "/l.json");
+  const std::string lutSidecar((std::istreambuf_iterator<char>(lj)), std::istreambuf_iterator<char>());
+  CHECK_THAT(lutSidecar, Catch::Contains("\"samples_histogram\""));
+  CHECK_THAT(lutSidecar, Catch::Contains("\"texels_at_cap\""));
+  const std::string obj = dir + "/tri.obj";
+  std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n";
+  auto tr = test::runCli("transport '" + obj + "' -o '" + dir + "/t.npy' --tolerance 1e-2 --quiet");
+  REQUIRE(tr.exitCode == 0);
+  std::ifstream tj(dir + "/t.json");
+  const std::string trSidecar((std::istreambuf_iterator<char>(tj)), std::istreambuf_iterator<char>());
+  CHECK_THAT(trSidecar, Catch::Contains("\"vertices_unoccludable\": 3"));
+  CHECK_THAT(trSidecar, Catch::Contains("\"achieved_error_max\""));
+  CHECK(test::runCli("transport '" + obj + "' -o '" + dir + "/u.npy' --samples 64 --tolerance 1e-2").exitCode == 2);
 }
