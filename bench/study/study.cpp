@@ -186,10 +186,9 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       row("transport", c.name + "-reference", "samples", 2.0 * rs, t, refBound, e.rms / 2, 2.0 * rs * c.mesh.vertexCount(),
           refBound);
     }
+    const std::vector<uint8_t> unocc = unoccludableVertices(c.mesh);
     std::fprintf(stderr, "transport %s: %zu vertices, %zu unoccludable\n", c.name.c_str(), c.mesh.vertexCount(),
-                 unoccludableVertices(c.mesh).size() ? size_t(std::count(unoccludableVertices(c.mesh).begin(),
-                                                                         unoccludableVertices(c.mesh).end(), 1))
-                                                     : 0);
+                 size_t(std::count(unocc.begin(), unocc.end(), 1)));
     const int top = c.mode == TransportMode::Interreflected ? maxSamples / 4 : maxSamples;
     for (TransportSampler s : samplers) {
       for (int n = 16; n <= top; n *= 4) {
@@ -314,9 +313,11 @@ int main(int argc, char** argv) {
   std::fprintf(gOut, "product,curve,param,value,wall_s,cpu_s,err_max,err_rms,samples_total,ref_bound\n");
   Runtime rt("cpu");
   std::fprintf(stderr, "device: %s\n", rt.deviceLabel().c_str());
-  studyEnv(rt, argv[2]);
-  studyLut(rt, quick ? 32 : 64, quick ? 4096 : 65536);
-  studyTransport(rt, quick ? 1024 : 16384, quick ? 4096 : 32768);
+  // STUDY_ONLY=env|lut|transport runs one product (for debugging a sweep).
+  const std::string only = std::getenv("STUDY_ONLY") ? std::getenv("STUDY_ONLY") : "";
+  if (only.empty() || only == "env") studyEnv(rt, argv[2]);
+  if (only.empty() || only == "lut") studyLut(rt, quick ? 32 : 64, quick ? 4096 : 65536);
+  if (only.empty() || only == "transport") studyTransport(rt, quick ? 1024 : 16384, quick ? 4096 : 32768);
   std::fclose(gOut);
   return 0;
 }
