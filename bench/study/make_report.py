@@ -12,7 +12,7 @@ ROOT = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file
 RES = os.path.join(ROOT, "bench", "results", "study")
 IMG = os.path.join(ROOT, "docs", "images")
 
-rows, adaptive = [], []
+rows, adaptive, uniform_cmp = [], [], []
 with open(os.path.join(RES, "study.csv")) as f:
     header = None
     for line in f:
@@ -170,8 +170,8 @@ cases = ["sphere-unoccluded", "bumpy-shadowed", "bumpy-interreflected"]
 if any(p == "transport" for (p, c) in curves):
     w("## Transport")
     w("")
-    w("Cases (order 3): `sphere-unoccluded`, a UV sphere (1201 vertices, convex: every vertex is unoccludable "
-      "and takes the ray-free path), reference the analytic Funk–Hecke projection of the clamped cosine; "
+    w("Cases (order 3): `sphere-unoccluded`, a UV sphere (24 × 48, 1106 vertices, convex: every vertex is unoccludable "
+      "and takes the ray-free path; with `--tolerance` it gets the closed form and no samples), reference the analytic Funk–Hecke projection of the clamped cosine; "
       "`bumpy-shadowed` and `bumpy-interreflected` (2 bounces, albedo 0.8), `makeBumpySphere(2000)`, reference "
       "a converged run (the mean of two Hammersley runs with different seeds at the largest sample count) whose "
       "own error bound is half their largest per-vertex difference (dashed line). Samplers: shifted Hammersley "
@@ -256,6 +256,7 @@ if adaptive:
                 break
         if uni is None and pts[0]["err_max"] <= target:
             uni = pts[0]["samples_total"]
+        uniform_cmp.append((a["product"], a["case"], a["tol"], r["samples_total"], uni))
         w("| %s | %s | %s | %s | %s |" % (a["product"], a["case"], fmt(a["tol"]), fmt(r["samples_total"]),
                                           fmt(uni) if uni else "beyond the sweep"))
     w("")
@@ -286,11 +287,51 @@ for use, targets in uses.items():
             what += " (order 3)"
         w("| %s | %s | %s | %s | %s |" % (use, product, what, fmt(b["wall_s"]), fmt(b["err_max"])))
 w("")
-w("Reading the table: for a LUT, `--tolerance` reaches a given maximum error with fewer total samples than "
-  "any uniform count, because only the grazing, low-roughness texels need many; for transport the "
-  "default Hammersley sampler is the best uniform choice, and `--tolerance` spends samples where "
-  "occlusion makes the integrand hard (vertices that cannot be occluded take the ray-free path whatever "
-  "the setting). Regenerate with `bash bench/study/run.sh`.")
+# Findings, computed from the rows above.
+w("## Findings")
+w("")
+
+
+def at(product, curve, value):
+    return next((r for r in rows if r["product"] == product and r["curve"] == curve and r["value"] == value), None)
+
+
+for case in cases:
+    errs = {}
+    for smp in ("hammersley", "stratified", "random"):
+        r = at("transport", "%s-%s" % (case, smp), 1024)
+        if r:
+            errs[smp] = r["err_max"]
+    if errs:
+        best = min(errs, key=errs.get)
+        w("- transport `%s` at 1024 samples: max error %s; the best sampler is %s." % (
+            case, ", ".join("%s %s" % (k, fmt(v)) for k, v in errs.items()), best))
+pk = {pw: at("transport", "bumpy-shadowed-packet%d" % pw, 1024) for pw in (0, 8, 16)}
+if all(pk.values()):
+    w("- transport packet width (bumpy shadowed, 1024 samples): scalar %s s, 8 → %s s, 16 → %s s (same error)."
+      % (fmt(pk[0]["wall_s"]), fmt(pk[8]["wall_s"]), fmt(pk[16]["wall_s"])))
+t1, t2, t3, t4 = (at("lut", "ggx-" + v, 16384) for v in ("table", "table-fastmath", "precise-trig", "native-trig"))
+if t1 and t2 and t3 and t4:
+    w("- LUT at 16384 samples: host table %s s (max error %s), with fast math %s s (%s), precise trigonometry "
+      "%s s (%s), native trigonometry %s s (%s): the table is fastest and fast math changes the error by "
+      "less than the sampling noise." % (fmt(t1["wall_s"]), fmt(t1["err_max"]), fmt(t2["wall_s"]), fmt(t2["err_max"]),
+                                        fmt(t3["wall_s"]), fmt(t3["err_max"]), fmt(t4["wall_s"]), fmt(t4["err_max"])))
+for a_prod, a_case in sorted({(a["product"], a["case"]) for a in adaptive}):
+    wins = [u for u in uniform_cmp if u[0] == a_prod and u[1] == a_case]
+    better = [u for u in wins if u[4] is not None and u[3] < u[4]]
+    w("- `--tolerance` on %s `%s`: fewer total samples than uniform sampling at equal maximum error for %d of "
+      "%d tolerances." % (a_prod, a_case, len(better), len(wins)))
+w("")
+w("On these cases the adaptive mode does not pay for itself against a single uniform low-discrepancy set at "
+  "equal maximum error where the counts above say so: four randomised replicas of n/4 points converge more "
+  "slowly than one n-point Hammersley set, the safety factor asks for more samples than the actual error "
+  "needs, and on low-roughness LUT texels a rare zero-weight region (reflections below the horizon) can be "
+  "missed by all four replicas, so their spread underestimates the error and the maximum error stalls near "
+  "2e-3. Its use is a per-item error guarantee for most items (the fraction column) and the sidecar's "
+  "honest per-item estimate; uniform Hammersley/table sampling remains the cheaper way to a given "
+  "maximum error. Vertices that cannot be occluded cost no rays in any mode.")
+w("")
+w("Regenerate with `bash bench/study/run.sh`.")
 w("")
 open(os.path.join(ROOT, "docs", "accuracy.md"), "w").write("\n".join(md))
 print("wrote docs/accuracy.md and", len([f for f in os.listdir(IMG) if f.startswith("accuracy_")]), "plots")

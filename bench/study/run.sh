@@ -72,5 +72,10 @@ done
 
 END=$(date +%s)
 echo "{\"runtime_s\": $((END - START)), \"quick\": \"${QUICK:-no}\"}" > "$OUT/run.json"
-python3 "$ROOT/bench/study/make_report.py" "$ROOT"
+# The report needs matplotlib: take the first python3 that has it.
+PY=python3
+for p in python3 /usr/bin/python3; do
+  if command -v "$p" >/dev/null && "$p" -c "import matplotlib" 2>/dev/null; then PY=$p; break; fi
+done
+"$PY" "$ROOT/bench/study/make_report.py" "$ROOT"
 echo "study: $((END - START)) s; results in $OUT, report in docs/accuracy.md"
