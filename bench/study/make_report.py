@@ -145,7 +145,10 @@ if lut:
     w("Reference: `computeLutReference` (Gauss–Legendre over the half vector, double). Its own error bound, "
       "the largest change when its nodes are doubled per axis, is %s (GGX) and %s (Beckmann): the dashed "
       "line. Knobs: samples per texel, how directions are made (host table, precise or native sin/cos in "
-      "the kernel), `-cl-fast-relaxed-math`, the NDF, and `--tolerance` (adaptive)." % (fmt(ggx_bound), fmt(bk_bound)))
+      "the kernel), `-cl-fast-relaxed-math`, the NDF, and `--tolerance` (adaptive). Not exposed, so not swept: "
+      "the half-vector sampler (GGX always uses visible-normal sampling, Beckmann the GGX proposal reweighted) "
+      "and the work-group size (fixed at 16 points per group). Table size 64² for the sweeps; total samples "
+      "= samples per texel × texels." % (fmt(ggx_bound), fmt(bk_bound)))
     w("")
     w("![lut](%s)" % img)
     w("")
