@@ -26,6 +26,12 @@ int runLut(const CommandLine& cl) {
   o.kullaConty = cl.has("kulla-conty");
   o.alphaDirect = cl.has("alpha-direct");
   o.fastMath = cl.has("fast-math");
+  if (cl.has("samples") && cl.has("tolerance"))
+    throw UsageError("--tolerance", "cannot be combined with --samples (give one or the other)");
+  if (cl.has("max-samples") && !cl.has("tolerance"))
+    throw UsageError("--max-samples", "only applies with --tolerance");
+  if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
+  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, -(1L << 30), 1L << 30));
   validateLutOptions(o);
 
   Runtime rt(cl.device());
@@ -37,12 +43,17 @@ int runLut(const CommandLine& cl) {
                 lut.size, lut.size, o.samples, lut.kernelSeconds * 1e3, lut.buildSeconds, lut.stdErrMax,
                 out.c_str());
   status(cl, line);
+  if (o.tolerance > 0) {
+    std::snprintf(line, sizeof line, "lut: adaptive: %.4g samples in all, estimated error max %.3g mean %.3g, %zu texels at the cap",
+                  double(lut.totalSamples), lut.errorEstimateMax, lut.errorEstimateMean, lut.texelsAtCap);
+    status(cl, line);
+  }
   return 0;
 }
 
 PRTBAKE_COMMAND(Command{
     "lut", "split-sum BRDF lookup tables (A, B) as OpenEXR + JSON sidecar",
-    "prtbake lut -o OUT.exr [--size N] [--samples N] [--ndf ggx|beckmann]\n"
+    "prtbake lut -o OUT.exr [--size N] [--samples N | --tolerance E [--max-samples N]] [--ndf ggx|beckmann]\n"
     "           [--visibility smith-correlated|smith-separable|schlick-ggx] [--multiscatter | --cloth]\n"
     "           [--kulla-conty] [--alpha-direct] [--half] [--fast-math]\n"
     "Channels: R = A, G = B, B = multiscatter E or cloth; --kulla-conty adds E and Eavg.\n"
@@ -51,6 +62,8 @@ PRTBAKE_COMMAND(Command{
         {"output", true, "output OpenEXR path (also -o); the sidecar is OUT.json"},
         {"size", true, "table size N (N x N texels, 1..8192; default 128)"},
         {"samples", true, "samples per texel (default 1024)"},
+        {"tolerance", true, "adaptive samples per texel until every channel's estimated error < E"},
+        {"max-samples", true, "with --tolerance: the most samples per texel (default 65536)"},
         {"ndf", true, "ggx (default) or beckmann"},
         {"visibility", true, "smith-correlated (default), smith-separable or schlick-ggx (k = alpha/2)"},
         {"multiscatter", false, "B channel: E = A + B for multiple-scattering compensation (Filament)"},

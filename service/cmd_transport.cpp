@@ -31,6 +31,13 @@ int runTransport(const CommandLine& cl) {
   o.mode = parseTransportMode(cl.get("mode", "shadowed"));
   o.order = int(cl.getInt("order", 3, 1, kMaxTransportOrder));
   o.samples = int(cl.getInt("samples", 1024, 1, 1 << 24));
+  if (cl.has("samples") && cl.has("tolerance"))
+    throw UsageError("--tolerance", "cannot be combined with --samples (give one or the other)");
+  if (cl.has("max-samples") && !cl.has("tolerance"))
+    throw UsageError("--max-samples", "only applies with --tolerance");
+  if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
+  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, 128, 1 << 24));
+  if (cl.has("sampler")) o.sampler = parseTransportSampler(cl.get("sampler"));
   o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
   o.bounces = int(cl.getInt("bounces", 3, 1, 64));
   o.bounceTolerance = cl.getDouble("bounce-tolerance", 1e-4, 0, 1e30);
@@ -47,7 +54,8 @@ int runTransport(const CommandLine& cl) {
   Mesh mesh = loadMesh(input);
   status(cl, "transport: " + input + ": " + std::to_string(mesh.vertexCount()) + " vertices, " +
                  std::to_string(mesh.triangleCount()) + " triangles, " + transportModeName(o.mode) + ", order " +
-                 std::to_string(o.order) + ", " + std::to_string(o.samples) + " samples");
+                 std::to_string(o.order) + ", " +
+                 (o.tolerance > 0 ? "tolerance " + cl.get("tolerance") : std::to_string(o.samples) + " samples"));
   Runtime rt(cl.device());
   const TransportResult r = computeTransport(rt, mesh, o);
   // Every output is produced, then written to its temp file, before any is renamed
@@ -70,13 +78,24 @@ int runTransport(const CommandLine& cl) {
                     ? (", " + std::to_string(r.bouncesUsed) + " bounces").c_str()
                     : "");
   status(cl, line);
+  if (r.verticesUnoccludable > 0 || o.tolerance > 0) {
+    std::snprintf(line, sizeof line, "transport: %zu unoccludable vertices; %.4g samples in all", r.verticesUnoccludable,
+                  double(r.totalSamples));
+    status(cl, line);
+  }
+  if (o.tolerance > 0) {
+    std::snprintf(line, sizeof line, "transport: adaptive: estimated error max %.3g mean %.3g, %zu vertices at the cap",
+                  r.maxErrorEstimate, r.meanErrorEstimate, r.verticesAtCap);
+    status(cl, line);
+  }
   return 0;
 }
 
 PRTBAKE_COMMAND(Command{
     "transport", "per-vertex PRT transport in SH (unshadowed, shadowed, interreflected)",
     "prtbake transport MESH -o OUT.npy [--mode unshadowed|shadowed|interreflected] [--bounces B]\n"
-    "       [--order N] [--samples N] [--seed S] [--gltf OUT.glb] [--games202 transport.txt]\n"
+    "       [--order N] [--samples N | --tolerance E [--max-samples N]] [--seed S]\n"
+    "       [--sampler hammersley|stratified|random] [--gltf OUT.glb] [--games202 transport.txt]\n"
     "       [--bounce-tolerance E] [--albedo A]\n"
     "Writes OUT.npy (float32 [V, n^2], or [V, 3, n^2] for coloured interreflection) and OUT.json.",
     {{"output", true, "the .npy output (-o); the JSON sidecar goes beside it"},
@@ -85,6 +104,10 @@ PRTBAKE_COMMAND(Command{
      {"bounce-tolerance", true, "stop when a bounce adds less than this (default 1e-4; 0: never)"},
      {"order", true, "SH order 1..8 (default 3)"},
      {"samples", true, "directions per vertex (default 1024)"},
+     {"tolerance", true, "adaptive samples per vertex until every coefficient's estimated error < E "
+                       "(unshadowed/shadowed)"},
+     {"max-samples", true, "with --tolerance: the most samples per vertex (default 65536)"},
+     {"sampler", true, "hammersley (default) | stratified | random"},
      {"seed", true, "sample set seed (default 0)"},
      {"albedo", true, "grey albedo for every vertex, overriding the file's"},
      {"gltf", true, "write a copy of the glTF input with _PRT_T* vertex attributes"},

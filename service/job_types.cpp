@@ -101,8 +101,7 @@ TransportOptions transportOptionsFrom(const json& p) {
   options.seed = p["seed"].get<uint64_t>();
   options.bounces = p["bounces"].get<int>();
   options.bounceTolerance = p["bounce_tolerance"].get<double>();
-  if (!p["tolerance"].is_null())
-    throw UsageError("tolerance", "adaptive sample counts are not available for transport jobs yet; give samples");
+  if (!p["tolerance"].is_null()) options.tolerance = p["tolerance"].get<double>();
   return options;
 }
 
@@ -174,6 +173,8 @@ ExecResult runTransport(const Job& job, ExecContext& ctx) {
                    {"bounces_used", r.bouncesUsed},
                    {"standard_error_max", r.maxStdError},
                    {"standard_error_mean", r.meanStdError},
+                   {"samples_total", r.totalSamples},
+                   {"vertices_unoccludable", r.verticesUnoccludable},
                    {"timings", {{"bvh_seconds", r.bvhSeconds}, {"kernel_seconds", r.kernelSeconds},
                                 {"total_seconds", r.totalSeconds}}}};
   return result;
@@ -191,6 +192,7 @@ ExecResult runLut(const Job& job, ExecContext& ctx) {
   options.cloth = p["cloth"].get<bool>();
   options.kullaConty = p["kulla_conty"].get<bool>();
   options.alphaDirect = p["alpha_direct"].get<bool>();
+  if (!p["tolerance"].is_null()) options.tolerance = p["tolerance"].get<double>();
   validateLutOptions(options);
   const LutResult lut = computeLut(ctx.runtime(), options);
   const std::string exr = ctx.output("exr");
@@ -208,6 +210,7 @@ ExecResult runLut(const Job& job, ExecContext& ctx) {
   result.inputFiles = {};
   result.report = {{"size", lut.size},
                    {"samples", options.samples},
+                   {"samples_total", lut.totalSamples},
                    {"standard_error_max", lut.stdErrMax},
                    {"standard_error_mean", lut.stdErrMean},
                    {"timings", {{"kernel_seconds", lut.kernelSeconds}, {"build_seconds", lut.buildSeconds},
@@ -289,11 +292,14 @@ std::vector<JobType> makeJobTypes() {
               boolean("cloth", false),
               boolean("kulla_conty", false),
               boolean("alpha_direct", false),
-              boolean("half", false)};
+              boolean("half", false),
+              number("tolerance", nullptr, 1e-9, 1.0)};
   lut.check = [](const json& raw, const json& p) {
     std::vector<std::pair<std::string, std::string>> problems;
     if (raw.contains("outputs") && raw["outputs"].is_object() && !raw["outputs"].contains("exr"))
       problems.push_back({"outputs", "a lut job needs an 'exr' output (the 'json' sidecar describes it)"});
+    if (raw.contains("tolerance") && raw.contains("samples"))
+      problems.push_back({"tolerance", "cannot be combined with samples (give one or the other)"});
     if (p["multiscatter"] == true && p["cloth"] == true)
       problems.push_back({"cloth", "cannot be combined with multiscatter (both use the B channel)"});
     return problems;

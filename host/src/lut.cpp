@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "lut_detail.h"
 #include "lut_sampling.clh"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
@@ -30,13 +31,16 @@ double radicalInverse2(uint32_t k) {
 }
 
 // The per-sample table of lut_sampling.clh, in double then rounded to float.
-std::vector<float> sampleTable(int samples, int nPad) {
+// (s1, s2): a Cranley–Patterson shift of the points (0 for the tables; the adaptive
+// driver, lut_adaptive.cpp, draws independent shifts).
+std::vector<float> sampleTable(int samples, int nPad, double s1 = 0, double s2 = 0) {
   std::vector<float> t(size_t(LUT_TAB_ROWS) * nPad, 0.0f);
   auto at = [&](int row, int k) -> float& { return t[size_t(row) * nPad + k]; };
   for (int k = 0; k < nPad; ++k) {
     // Padding repeats a harmless point (mask 0) so no lane computes NaN.
     const int kk = k < samples ? k : 0;
-    const double u1 = (kk + 0.5) / samples, u2 = radicalInverse2(uint32_t(kk));
+    double u1 = (kk + 0.5) / samples + s1, u2 = radicalInverse2(uint32_t(kk)) + s2;
+    u1 -= std::floor(u1), u2 -= std::floor(u2);
     const double r = std::sqrt(u1), cphi = std::cos(2 * kPi * u2), sphi = std::sin(2 * kPi * u2);
     const double t1 = r * cphi;
     at(LUT_TAB_T1SQ, k) = float(t1 * t1);
@@ -84,7 +88,7 @@ struct KernelOut {
 // most kChunk points so that device and staging memory stay bounded for 8192² tables.
 template <class PointAt>
 KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& pointAt, double* kernelSeconds,
-                    double* buildSeconds) {
+                    double* buildSeconds, double s1 = 0, double s2 = 0) {
   constexpr size_t kChunk = size_t(1) << 20;
   const int nPad = (o.samples + LUT_SIMD - 1) / LUT_SIMD * LUT_SIMD;
   const double build0 = rt.buildSeconds();
@@ -95,7 +99,7 @@ KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& po
   if (o.cloth) res.cloth.resize(count);
   if (kernelSeconds) *kernelSeconds = 0;
   if (count == 0) return res;
-  const std::vector<float> table = sampleTable(o.samples, nPad);
+  const std::vector<float> table = sampleTable(o.samples, nPad, s1, s2);
   cl::Buffer tab(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table.size() * sizeof(float),
                  const_cast<float*>(table.data()));
   const size_t chunk = std::min(count, kChunk);
@@ -141,6 +145,11 @@ void validateLutOptions(const LutOptions& o) {
   if (o.samples < 1 || o.samples > kLutMaxSamples)
     throw UsageError("--samples",
                      std::to_string(o.samples) + " is out of range [1, " + std::to_string(kLutMaxSamples) + "]");
+  if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
+    throw UsageError("--tolerance", "must be a finite number ≥ 0");
+  if (o.tolerance > 0 && (o.toleranceMaxSamples < 4 * kLutMinReplicaSamples || o.toleranceMaxSamples > kLutMaxSamples))
+    throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [" + std::to_string(4 * kLutMinReplicaSamples) + ", " +
+                                          std::to_string(kLutMaxSamples) + "]");
   if (o.cloth && o.multiscatter)
     throw UsageError("--cloth", "the B channel holds one third table: choose --cloth or --multiscatter");
 }
@@ -225,6 +234,16 @@ void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<
   r.stdErrMean = stdErr.empty() ? 0 : sum / double(stdErr.size());
 }
 
+void evaluateLutShifted(Runtime& rt, const LutOptions& o, const std::vector<std::pair<float, float>>& muAlpha,
+                        double s1, double s2, std::vector<float>& a, std::vector<float>& b,
+                        std::vector<float>& cloth, double* kernelSeconds) {
+  double seconds = 0;
+  KernelOut k = runKernel(
+      rt, o, muAlpha.size(), [&](size_t i) { return muAlpha[i]; }, &seconds, nullptr, s1, s2);
+  if (kernelSeconds) *kernelSeconds += seconds;
+  a = std::move(k.a), b = std::move(k.b), cloth = std::move(k.cloth);
+}
+
 std::vector<LutPoint> texelPoints(int n) {
   std::vector<LutPoint> pts;
   pts.reserve(size_t(n) * n);
@@ -237,6 +256,7 @@ std::vector<LutPoint> texelPoints(int n) {
 LutResult computeLut(Runtime& rt, const LutOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   validateLutOptions(options);
+  if (options.tolerance > 0) return detail::computeLutAdaptive(rt, options);  // lut_adaptive.cpp
   LutResult r;
   r.options = options;
   r.size = options.size;
@@ -252,6 +272,7 @@ LutResult computeLut(Runtime& rt, const LutOptions& options) {
       &r.kernelSeconds, &r.buildSeconds);
   r.a = std::move(k.a);
   r.b = std::move(k.b);
+  r.totalSamples = uint64_t(texels) * uint64_t(options.samples);
   const std::vector<float> cloth = std::move(k.cloth), stdErr = std::move(k.stdErr);
   detail::finishLut(r, cloth, stdErr);
   r.totalSeconds = secondsSince(t0);

@@ -71,6 +71,25 @@ nlohmann::json sidecar(const LutResult& lut, const std::string& exrPath, bool ha
       {"std_error_mean", lut.stdErrMean},
       {"meaning", "Monte Carlo standard error sigma/sqrt(n) per texel, max over channels; the low-discrepancy "
                   "points converge faster, so this bounds the error loosely (docs/lut.md)"}};
+  if (o.tolerance > 0) {
+    nlohmann::json hist = nlohmann::json::object();
+    for (size_t k = 0; k < lut.samplesHistogram.size(); ++k)
+      if (lut.samplesHistogram[k]) hist[std::to_string(uint64_t(1) << k)] = lut.samplesHistogram[k];
+    j["samples"] = "adaptive";
+    j["parameters"]["samples"] = "adaptive";
+    j["parameters"]["tolerance"] = o.tolerance;
+    j["adaptive"] = {{"tolerance", o.tolerance},
+                     {"replicas", kLutReplicas},
+                     {"error_factor", kLutErrorFactor},
+                     {"estimate", "K * max_channel s_c / sqrt(R): s_c the spread of channel c over R independently "
+                                  "shifted Hammersley sets"},
+                     {"achieved_error_max", lut.errorEstimateMax},
+                     {"achieved_error_mean", lut.errorEstimateMean},
+                     {"samples_total", lut.totalSamples},
+                     {"samples_histogram", hist},
+                     {"cap", o.toleranceMaxSamples},
+                     {"texels_at_cap", lut.texelsAtCap}};
+  }
   nlohmann::json t = {{"kernel_s", lut.kernelSeconds}, {"build_s", lut.buildSeconds}, {"compute_s", lut.totalSeconds}};
   if (commandSeconds >= 0) t["command_s"] = commandSeconds;
   j["timings"] = t;

@@ -1,12 +1,14 @@
 // Transport on the OpenCL device: BVH upload, direct term, bounces (see transport.h).
 #include "prtbake/transport.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
+#include "transport_direct.h"
 #include "transport_setup.h"
 
 namespace prtbake {
@@ -25,6 +27,7 @@ struct DeviceScene {
   cl::Buffer origins, frames, dirs, dirsSoA, nodes, tris;
   int paddedCount = 0;
   float tMax = 0;
+  std::vector<uint8_t> unoccludable;  // per vertex (filled when the BVH is built)
 };
 
 void setCommonArgs(cl::Kernel& k, int nv, int ns, const DeviceScene& s) {
@@ -68,6 +71,7 @@ DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, co
     r.degenerateTriangles = bvh.degenerateTriangles;
     s.nodes = upload(rt, bvh.nodes);
     s.tris = upload(rt, bvh.packed);
+    s.unoccludable = detail::unoccludableFromBvh(mesh, bvh, setup);
     if (bvh.nodes.empty()) {
       // Every triangle has zero area: nothing can occlude. One leaf whose empty box
       // (min > max) no ray enters.
@@ -123,6 +127,7 @@ size_t rangeSize(const Mesh& mesh, const TransportOptions& o) {
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
   const auto tStart = Clock::now();
   detail::checkTransportOptions(o);
+  if (o.tolerance > 0) return detail::computeTransportAdaptive(rt, mesh, o);  // transport_adaptive.cpp
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   TransportResult r;
   r.order = o.order;
@@ -163,11 +168,29 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   kd.setArg(8, direct);
   kd.setArg(9, visible);
   const auto tKernel = Clock::now();
-  q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
   std::vector<float> t0(size_t(nv) * nc), vis(static_cast<size_t>(nv));
-  q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
-  q.enqueueReadBuffer(visible, CL_TRUE, 0, vis.size() * 4, vis.data());
-  if (visibility) r.rays += uint64_t(nv) * uint64_t(o.samples);
+  for (uint8_t u : scene.unoccludable) r.verticesUnoccludable += u;
+  if (r.verticesUnoccludable == 0) {
+    q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
+    q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
+    q.enqueueReadBuffer(visible, CL_TRUE, 0, vis.size() * 4, vis.data());
+  } else {
+    // Unoccludable vertices take the unshadowed kernel (same directions, no rays).
+    detail::DirectRunner runner(rt, o, scene.nodes, scene.tris, scene.tMax);
+    for (int skip = 0; skip < 2; ++skip) {
+      std::vector<uint32_t> list;
+      for (int v = 0; v < nv; ++v)
+        if (scene.unoccludable[v] == skip) list.push_back(uint32_t(v));
+      std::vector<float> c, f;
+      runner.run(setup, list, skip == 0, c, f);
+      for (size_t i = 0; i < list.size(); ++i) {
+        std::copy_n(&c[i * nc], nc, &t0[size_t(list[i]) * nc]);
+        vis[list[i]] = f[i];
+      }
+    }
+  }
+  r.totalSamples = uint64_t(nv) * uint64_t(o.samples);
+  if (visibility) r.rays += uint64_t(nv - int(r.verticesUnoccludable)) * uint64_t(o.samples);
 
   // Standard error of the direct term (see transport.h).
   r.stdError.assign(size_t(nv), 0.0f);

@@ -129,6 +129,11 @@ std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh
     params["bounces"] = o.bounces;
     params["bounce_tolerance"] = o.bounceTolerance;
   }
+  if (o.sampler != TransportSampler::Hammersley) params["sampler"] = transportSamplerName(o.sampler);
+  if (o.tolerance > 0) {
+    params["tolerance"] = o.tolerance;
+    params["max_samples"] = o.toleranceMaxSamples;
+  }
   if (o.albedoOverride) params["albedo"] = {(*o.albedoOverride)[0], (*o.albedoOverride)[1], (*o.albedoOverride)[2]};
   j["parameters"] = params;
   j["input"] = {{"path", inputPath}, {"sha256", sha256File(inputPath)}, {"vertices", mesh.vertexCount()},
@@ -144,7 +149,25 @@ std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh
       {"games202_units", "pi * T_i"},
       {"layout", r.channels == 1 ? "[vertices, n^2] float32" : "[vertices, 3 (RGB), n^2] float32"},
       {"sampling", "cosine-weighted shifted Hammersley, per-vertex rotation about the normal"}};
-  j["samples"] = {{"per_vertex", r.samples}, {"rays", r.rays}};
+  j["samples"] = {{"per_vertex", r.samples}, {"rays", r.rays}, {"total", r.totalSamples},
+                  {"vertices_unoccludable", r.verticesUnoccludable}};
+  if (o.tolerance > 0) {
+    json hist = json::object();
+    for (size_t k = 0; k < r.samplesHistogram.size(); ++k)
+      if (r.samplesHistogram[k]) hist[std::to_string(uint64_t(1) << k)] = r.samplesHistogram[k];
+    j["samples"]["per_vertex"] = "adaptive";
+    j["samples"]["max_per_vertex"] = r.samples;
+    j["adaptive"] = {{"tolerance", o.tolerance},
+                     {"replicas", kTransportReplicas},
+                     {"error_factor", kTransportErrorFactor},
+                     {"estimate", "K * max_i s_i / sqrt(R): s_i the spread of coefficient i over R independently "
+                                  "randomised sample sets"},
+                     {"achieved_error_max", r.maxErrorEstimate},
+                     {"achieved_error_mean", r.meanErrorEstimate},
+                     {"samples_histogram", hist},
+                     {"cap", o.toleranceMaxSamples},
+                     {"vertices_at_cap", r.verticesAtCap}};
+  }
   j["error"] = {{"estimate", "standard error of the direct term's coefficient vector (L2), independent-sample bound"},
                 {"max", r.maxStdError}, {"mean", r.meanStdError}};
   if (o.mode == TransportMode::Interreflected)

@@ -47,14 +47,45 @@ TransportMode parseTransportMode(const std::string& name) {
   throw UsageError("--mode", "unknown mode '" + name + "' (expected unshadowed|shadowed|interreflected)");
 }
 
+const char* transportSamplerName(TransportSampler sampler) {
+  switch (sampler) {
+    case TransportSampler::Hammersley: return "hammersley";
+    case TransportSampler::Stratified: return "stratified";
+    case TransportSampler::Random: return "random";
+  }
+  return "?";
+}
+
+TransportSampler parseTransportSampler(const std::string& name) {
+  if (name == "hammersley") return TransportSampler::Hammersley;
+  if (name == "stratified") return TransportSampler::Stratified;
+  if (name == "random") return TransportSampler::Random;
+  throw UsageError("--sampler", "unknown sampler '" + name + "' (expected hammersley|stratified|random)");
+}
+
 std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed) {
+  return sampleDirectionsLocal(samples, seed, TransportSampler::Hammersley);
+}
+
+std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed, TransportSampler sampler) {
   // Hammersley (u1 stratified, u2 the base-2 radical inverse) with a Cranley–Patterson
   // shift from the seed, mapped to the cosine-weighted hemisphere:
   //   r = √u1, φ = 2π u2, ω = (r cos φ, r sin φ, √(1 − u1)),  pdf = cos θ / π.
+  // Stratified: (u1, u2) jittered in cell (i mod m, i div m) of an m × m grid (the last
+  // N − m² points, when N is not a square, are independent); Random: independent (u1, u2).
   const double s1 = unitFromBits(splitmix64(seed * 2 + 1)), s2 = unitFromBits(splitmix64(seed * 2 + 2));
+  const int m = int(std::sqrt(double(std::max(samples, 0))));
   std::vector<std::array<double, 3>> out(size_t(std::max(samples, 0)));
   for (int i = 0; i < samples; ++i) {
     double u1 = (i + 0.5) / samples + s1, u2 = radicalInverse2(uint32_t(i)) + s2;
+    if (sampler != TransportSampler::Hammersley) {
+      const uint64_t h = splitmix64(seed * 0x9E3779B97F4A7C15ull + 2 * uint64_t(i) + 7);
+      const double j1 = unitFromBits(h), j2 = unitFromBits(splitmix64(h));
+      if (sampler == TransportSampler::Stratified && i < m * m)
+        u1 = ((i % m) + j1) / m, u2 = ((i / m) + j2) / m;
+      else
+        u1 = j1, u2 = j2;
+    }
     u1 -= std::floor(u1), u2 -= std::floor(u2);
     const double r = std::sqrt(u1), phi = 2 * kPi * u2;
     out[i] = {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
@@ -96,6 +127,12 @@ void checkTransportOptions(const TransportOptions& o) {
     throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0, 8 or 16)");
   if (!(o.bounceTolerance >= 0) || !std::isfinite(o.bounceTolerance))
     throw UsageError("--bounce-tolerance", "must be a finite number ≥ 0");
+  if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
+    throw UsageError("--tolerance", "must be a finite number ≥ 0");
+  if (o.tolerance > 0 && o.mode == TransportMode::Interreflected)
+    throw UsageError("--tolerance", "adaptive sampling applies to unshadowed and shadowed transport (give --samples)");
+  if (o.tolerance > 0 && (o.toleranceMaxSamples < 4 * kTransportMinReplicaSamples || o.toleranceMaxSamples > (1 << 24)))
+    throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [128, 16777216]");
   if (o.albedoOverride)
     for (float a : *o.albedoOverride)
       if (!(a >= 0 && a <= 1)) throw UsageError("--albedo", "albedo must lie in [0, 1]");
@@ -147,7 +184,7 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o) {
       for (int c = 0; c < 3; ++c) g[c] += n[c];
     }
   }
-  const auto dirs = sampleDirectionsLocal(o.samples, o.seed);
+  const auto dirs = sampleDirectionsLocal(o.samples, o.seed, o.sampler);
   s.dirs.resize(dirs.size() * 4);
   for (size_t i = 0; i < dirs.size(); ++i)
     for (int c = 0; c < 3; ++c) s.dirs[4 * i + c] = float(dirs[i][c]);

@@ -49,7 +49,22 @@ struct LutOptions {
   bool kullaConty = false;    // extra channels E and Eavg
   bool fastMath = false;      // -cl-fast-relaxed-math and native sqrt/rsqrt/divide
   LutDirections directions = LutDirections::Table;
+  // Adaptive sampling ("--tolerance E"; 0: off, `samples` is used). Each texel is
+  // estimated by kLutReplicas Hammersley sets with independent Cranley–Patterson shifts;
+  //   err(t) = kLutErrorFactor · max_channel s_c(t)/√R   (s_c: replica std. deviation),
+  // and texels with err ≥ tolerance get their samples doubled (fresh shifted sets, the
+  // earlier ones kept in the sample-weighted mean) until err < tolerance or the total
+  // per texel reaches toleranceMaxSamples. Channels: A, B and cloth when requested
+  // (E = A + B is then below 2·tolerance). Deterministic.
+  double tolerance = 0;
+  int toleranceMaxSamples = 65536;
 };
+
+constexpr int kLutReplicas = 4;
+constexpr double kLutErrorFactor = 2.0;    // measured: ≥ 95 % of texels end below E (tests/test_tolerance.cpp)
+// First round: 4 × 64 = 256 samples per texel. Fewer lets all four replicas miss the
+// rare zero-weight (N·L ≤ 0) samples of low-roughness texels and agree on a biased value.
+constexpr int kLutMinReplicaSamples = 64;
 
 // Throws UsageError (subject "--size", "--samples", ...) for a size outside
 // [1, kLutMaxSize], samples outside [1, kLutMaxSamples], or both cloth and multiscatter.
@@ -101,6 +116,15 @@ struct LutResult {
   double totalSeconds = 0;      // whole computeLut call
   std::string device;           // Runtime::deviceLabel()
   bool reference = false;       // computed by computeLutReference
+  // Adaptive sampling (LutOptions::tolerance > 0): samples per texel (row major),
+  // histogram[k] = texels that used 2^k samples, texels that hit the cap, and the
+  // replica-spread error estimate (max over channels) per texel, max and mean.
+  std::vector<int> samplesPerTexel;
+  std::vector<size_t> samplesHistogram;
+  size_t texelsAtCap = 0;
+  uint64_t totalSamples = 0;    // Σ over texels of the samples used
+  std::vector<float> errorEstimate;
+  double errorEstimateMax = 0, errorEstimateMean = 0;
 };
 
 // The table on the device. Throws UsageError for invalid options.

@@ -32,6 +32,15 @@ const char* transportModeName(TransportMode mode);
 // "unshadowed" | "shadowed" | "interreflected"; throws UsageError otherwise.
 TransportMode parseTransportMode(const std::string& name);
 
+// How the per-vertex directions are drawn (all cosine-distributed):
+//   Hammersley  shifted Hammersley points (low discrepancy; the default)
+//   Stratified  one jittered point per cell of a √N × √N grid (N rounded to a square)
+//   Random      independent uniform points (plain Monte Carlo)
+enum class TransportSampler { Hammersley, Stratified, Random };
+const char* transportSamplerName(TransportSampler sampler);
+// "hammersley" | "stratified" | "random"; throws UsageError otherwise.
+TransportSampler parseTransportSampler(const std::string& name);
+
 struct TransportOptions {
   TransportMode mode = TransportMode::Shadowed;
   int order = 3;            // SH order 1..kMaxTransportOrder
@@ -58,7 +67,24 @@ struct TransportOptions {
   // bounce, so it accepts only the whole mesh (UsageError otherwise).
   size_t firstVertex = 0;
   std::optional<size_t> vertexCount;
+  TransportSampler sampler = TransportSampler::Hammersley;
+  // Adaptive sampling ("--tolerance E", unshadowed and shadowed only; 0: off, `samples`
+  // is used). Each vertex is estimated by kTransportReplicas independently randomised
+  // sample sets (own shift and rotation); their spread gives the error estimate
+  //   err(p) = kTransportErrorFactor · max_i s_i(p)/√R   (s_i: replica std. deviation of T_i),
+  // and vertices whose err ≥ tolerance get their sample count doubled (fresh sets, the
+  // earlier ones kept in the sample-weighted mean) until err < tolerance or the total
+  // per vertex reaches toleranceMaxSamples. Deterministic for a given seed. In shadowed
+  // mode, vertices that cannot be occluded take the closed form (clampedCosineProjected)
+  // and use no samples.
+  double tolerance = 0;
+  int toleranceMaxSamples = 65536;
 };
+
+// Adaptive sampling constants (see TransportOptions::tolerance).
+constexpr int kTransportReplicas = 4;
+constexpr double kTransportErrorFactor = 2.0;  // measured: ≥ 95 % of vertices end below E (tests/test_tolerance.cpp)
+constexpr int kTransportMinReplicaSamples = 32; // first round: 4 × 32 = 128 samples per vertex
 
 // Orders accepted by the transport product.
 constexpr int kMaxTransportOrder = 8;
@@ -80,6 +106,18 @@ struct TransportResult {
   std::vector<std::vector<float>> bounceCoeffs;
   uint64_t rays = 0;                   // rays traced (0 when unshadowed)
   int samples = 0;
+  // Vertices whose hemisphere no triangle can reach (every vertex of a convex mesh):
+  // computed without visibility rays (shadowed and interreflected modes).
+  size_t verticesUnoccludable = 0;
+  // Adaptive sampling (TransportOptions::tolerance > 0): samples used per vertex,
+  // histogram[k] = vertices that used 2^k samples, vertices that hit the cap, and the
+  // replica-spread error estimate (max over coefficients) per vertex, max and mean.
+  std::vector<int> samplesPerVertex;
+  std::vector<size_t> samplesHistogram;
+  size_t verticesAtCap = 0;
+  uint64_t totalSamples = 0;  // Σ over vertices of the samples used (both modes)
+  std::vector<float> errorEstimate;
+  double maxErrorEstimate = 0, meanErrorEstimate = 0;
   double bvhSeconds = 0, kernelSeconds = 0, totalSeconds = 0;
   size_t bvhNodes = 0, degenerateTriangles = 0, verticesWithoutNormal = 0;
   std::string device;
@@ -108,6 +146,14 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
 // The sample set: `samples` local directions (x, y, z; z along the normal),
 // cosine-distributed, for `seed`.
 std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed);
+std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed, TransportSampler sampler);
+
+// Vertices that cannot be occluded: no triangle has a point above the plane through
+// the vertex's ray origin perpendicular to its normal n (all triangle vertices q with
+// n·(q − p) ≤ ½ ε (n·n_g), ε the ray offset), so every ray of its hemisphere escapes.
+// Conservative (a false "occludable" only costs rays). Tested with the BVH: a node whose
+// box lies below the plane is skipped whole. One flag per vertex.
+std::vector<uint8_t> unoccludableVertices(const Mesh& mesh);
 
 // --- outputs (all atomic: a failure leaves no file) ---
 // Each write* function has a *Bytes twin that returns the file's contents, so that a

@@ -1,0 +1,25 @@
+// Private: pieces of the LUT driver shared by lut.cpp, lut_reference.cpp and
+// lut_adaptive.cpp.
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include "prtbake/lut.h"
+#include "prtbake/runtime.h"
+
+namespace prtbake::detail {
+
+// Fills the derived tables (third, Kulla–Conty, error summary) from a, b, cloth.
+void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<float>& stdErr);
+// The texel centres of an n×n table, row major.
+std::vector<LutPoint> texelPoints(int n);
+// The kernel at (μ, α) points with o.samples Hammersley points shifted by (s1, s2)
+// (Cranley–Patterson, modulo 1); adds the kernel time to *kernelSeconds.
+void evaluateLutShifted(Runtime& rt, const LutOptions& o, const std::vector<std::pair<float, float>>& muAlpha,
+                        double s1, double s2, std::vector<float>& a, std::vector<float>& b,
+                        std::vector<float>& cloth, double* kernelSeconds);
+// The adaptive driver (LutOptions::tolerance > 0).
+LutResult computeLutAdaptive(Runtime& rt, const LutOptions& o);
+
+}  // namespace prtbake::detail
