@@ -110,6 +110,8 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
       throw InputError(path, "shape does not match the job (order " + std::to_string(r.order) + ")");
     r.coeffs.insert(r.coeffs.end(), part.begin(), part.end());
     r.rays += rep.value("rays", uint64_t(0));
+    r.totalSamples += rep.value("total_samples", uint64_t(0));
+    r.verticesUnoccludable += rep.value("vertices_unoccludable", size_t(0));
     r.maxStdError = std::max(r.maxStdError, rep.value("standard_error_max", 0.0));
     errorSum += rep.value("standard_error_mean", 0.0) * double(rows);
     r.bvhNodes = std::max(r.bvhNodes, rep.value("bvh_nodes", size_t(0)));

@@ -85,6 +85,8 @@ CommandLine parse(const Command& cmd, int argc, char** argv) {
         name = arg.substr(2);
       } else if (arg == "-o") {
         name = "output";
+      } else if (arg == "-q") {
+        name = "quiet";
       } else {
         throw UsageError(cmd.name, "unknown option '" + arg + "'");
       }

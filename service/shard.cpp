@@ -46,6 +46,8 @@ ExecResult runTransportPart(const Job& job, ExecContext& ctx) {
                    {"partial_sha256", sha256Hex(bytes.data(), bytes.size())},
                    {"samples", r.samples},
                    {"rays", r.rays},
+                   {"total_samples", r.totalSamples},
+                   {"vertices_unoccludable", r.verticesUnoccludable},
                    {"standard_error_max", r.maxStdError},
                    {"standard_error_mean", r.meanStdError},
                    {"bvh_nodes", r.bvhNodes},

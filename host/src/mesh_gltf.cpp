@@ -26,10 +26,17 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
   const size_t slash = path.find_last_of('/');
   const std::string baseDir = slash == std::string::npos ? "." : path.substr(0, slash);
   bool ok;
-  if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0)
+  if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
+    // The GLB header's version field (bytes 4..7, little-endian) is 2 for glTF 2.0;
+    // glTF 1.0 binaries (version 1) have another layout that this loader does not read.
+    if (bytes.size() < 12) throw InputError(path, "truncated GLB header (" + std::to_string(bytes.size()) + " bytes)");
+    const uint32_t glbVersion = uint32_t(uint8_t(bytes[4])) | uint32_t(uint8_t(bytes[5])) << 8 |
+                                uint32_t(uint8_t(bytes[6])) << 16 | uint32_t(uint8_t(bytes[7])) << 24;
+    if (glbVersion != 2)
+      throw InputError(path, "GLB container version " + std::to_string(glbVersion) + " (glTF 2.0 needs version 2)");
     ok = loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
                                      unsigned(bytes.size()), baseDir);
-  else
+  } else
     ok = loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir);
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();

@@ -1,5 +1,7 @@
 // OBJ loader (tinyobjloader): polygons triangulated, one vertex per (v, vt, vn) triple.
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <tuple>
 
@@ -11,8 +13,50 @@
 
 namespace prtbake {
 
+namespace {
+
+// tinyobjloader reads "nan"/"inf" coordinates as 0 and lets out-of-range face
+// indices overflow silently, so the text is checked first: every number on a
+// v/vn/vt line must be finite, and every face index must fit an int.
+void checkObjText(const std::string& path, const std::string& text) {
+  size_t lineNo = 0, pos = 0;
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    const std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
+    ++lineNo;
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos) continue;
+    const bool coords = line.compare(first, 2, "v ") == 0 || line.compare(first, 3, "vn ") == 0 ||
+                        line.compare(first, 3, "vt ") == 0 || line.compare(first, 2, "v\t") == 0;
+    const bool face = line.compare(first, 2, "f ") == 0 || line.compare(first, 2, "f\t") == 0;
+    if (!coords && !face) continue;
+    const char* p = line.c_str() + first + (line[first + 1] == ' ' || line[first + 1] == '\t' ? 1 : 2);
+    while (*p) {
+      while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '/') ++p;
+      if (!*p) break;
+      char* stop = nullptr;
+      if (coords) {
+        const double v = std::strtod(p, &stop);
+        if (stop != p && !std::isfinite(v))
+          throw InputError(path, "line " + std::to_string(lineNo) + ": non-finite coordinate");
+      } else {
+        errno = 0;
+        const long long v = std::strtoll(p, &stop, 10);
+        if (stop != p && (errno == ERANGE || v > 2147483647LL || v < -2147483647LL))
+          throw InputError(path, "line " + std::to_string(lineNo) + ": face index out of range");
+      }
+      if (stop == p) ++p;  // not a number: let the parser judge it
+      else p = stop;
+    }
+  }
+}
+
+}  // namespace
+
 Mesh loadObj(const std::string& path) {
-  readFile(path);  // a missing or unreadable file is an InputError naming it
+  checkObjText(path, readFile(path));  // also: a missing or unreadable file is an InputError naming it
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;
   config.vertex_color = false;

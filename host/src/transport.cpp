@@ -127,7 +127,11 @@ size_t rangeSize(const Mesh& mesh, const TransportOptions& o) {
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
   const auto tStart = Clock::now();
   detail::checkTransportOptions(o);
-  if (o.tolerance > 0) return detail::computeTransportAdaptive(rt, mesh, o);  // transport_adaptive.cpp
+  if (o.tolerance > 0) {
+    if (o.firstVertex != 0 || (o.vertexCount && *o.vertexCount != mesh.vertexCount()))
+      throw UsageError("tolerance", "adaptive sampling computes whole meshes only (no vertex range)");
+    return detail::computeTransportAdaptive(rt, mesh, o);  // transport_adaptive.cpp
+  }
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   TransportResult r;
   r.order = o.order;
@@ -169,7 +173,9 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   kd.setArg(9, visible);
   const auto tKernel = Clock::now();
   std::vector<float> t0(size_t(nv) * nc), vis(static_cast<size_t>(nv));
-  for (uint8_t u : scene.unoccludable) r.verticesUnoccludable += u;
+  // scene.unoccludable is indexed by the whole mesh's vertices; this call covers [first, first + nv).
+  auto unoccludable = [&](int v) { return scene.unoccludable.empty() ? uint8_t(0) : scene.unoccludable[first + size_t(v)]; };
+  for (int v = 0; v < nv; ++v) r.verticesUnoccludable += unoccludable(v);
   if (r.verticesUnoccludable == 0) {
     q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
     q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
@@ -180,7 +186,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     for (int skip = 0; skip < 2; ++skip) {
       std::vector<uint32_t> list;
       for (int v = 0; v < nv; ++v)
-        if (scene.unoccludable[v] == skip) list.push_back(uint32_t(v));
+        if (unoccludable(v) == skip) list.push_back(uint32_t(v));
       std::vector<float> c, f;
       runner.run(setup, list, skip == 0, c, f);
       for (size_t i = 0; i < list.size(); ++i) {
