@@ -109,8 +109,12 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
   if (ncomp < comps) throw InputError(path, what + ": accessor " + std::to_string(index) + " has too few components");
   const int csize = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
   if (csize <= 0) throw InputError(path, what + ": unsupported component type");
-  std::vector<double> out(acc.count * size_t(comps), 0.0);
-  if (acc.bufferView < 0) return out;  // all zeros (sparse accessors are not read)
+  if (acc.bufferView < 0) {  // all zeros (sparse accessors are not read); no buffer bounds the count
+    if (acc.count > (size_t(1) << 28))
+      throw InputError(path, what + ": accessor " + std::to_string(index) + " claims " + std::to_string(acc.count) +
+                                 " elements without a buffer");
+    return std::vector<double>(acc.count * size_t(comps), 0.0);
+  }
   if (acc.bufferView >= int(model.bufferViews.size()))
     throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " does not exist");
   const auto& view = model.bufferViews[acc.bufferView];
@@ -119,11 +123,15 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
   const auto& buf = model.buffers[view.buffer].data;
   const size_t stride = view.byteStride ? view.byteStride : size_t(ncomp) * csize;
   const size_t start = view.byteOffset + acc.byteOffset;
+  if (acc.count > buf.size() || start > buf.size())  // also keeps the products below from overflowing
+    throw InputError(path, what + ": accessor " + std::to_string(index) + " runs past the end of its buffer (truncated file?)");
   if (acc.count > 0) {
     const size_t last = start + (acc.count - 1) * stride + size_t(ncomp) * csize;
     if (last > buf.size() || acc.byteOffset + (acc.count - 1) * stride + size_t(ncomp) * csize > view.byteLength)
       throw InputError(path, what + ": accessor " + std::to_string(index) + " runs past the end of its buffer (truncated file?)");
   }
+  // Allocated only once the count is known to fit the buffer.
+  std::vector<double> out(acc.count * size_t(comps), 0.0);
   for (size_t i = 0; i < acc.count; ++i) {
     const unsigned char* e = buf.data() + start + i * stride;
     for (int c = 0; c < comps; ++c) {
@@ -158,8 +166,19 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
   const std::vector<double> p = readAccessor(model, pos->second, 3, path, what + " POSITION");
   const size_t nv = p.size() / 3;
   std::vector<double> n;
-  if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end())
+  if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
     n = readAccessor(model, it->second, 3, path, what + " NORMAL");
+    // glTF 2.0 requires unit normals; a file that breaks this is refused rather than
+    // silently repaired (kNormalLengthTol: looser than float rounding, as the glTF
+    // validator's own check).
+    constexpr double kNormalLengthTol = 1e-2;
+    for (size_t v = 0; v < n.size() / 3; ++v) {
+      const double len = std::sqrt(n[3 * v] * n[3 * v] + n[3 * v + 1] * n[3 * v + 1] + n[3 * v + 2] * n[3 * v + 2]);
+      if (std::isfinite(len) && std::abs(len - 1.0) > kNormalLengthTol)
+        throw InputError(path, what + " NORMAL: vertex " + std::to_string(v) + " has length " + std::to_string(len) +
+                                   " (glTF 2.0 requires unit normals)");
+    }
+  }
   std::vector<double> col;
   if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
     col = readAccessor(model, it->second, 3, path, what + " COLOR_0");
