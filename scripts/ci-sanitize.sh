@@ -25,6 +25,7 @@ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRTBAKE_SANITIZE=ON -
 cmake --build "$build" -j"$jobs" --target prtbake_cli test_env_load test_env_files test_jobs test_corpus
 
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1"
+export LSAN_OPTIONS="suppressions=$root/tests/sanitizer/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export POCL_CACHE_DIR="$build/pocl-cache"
 # The four test executables are run directly (ctest -R matches test-case names,

@@ -2,6 +2,8 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <nlohmann/json.hpp>
+#include <sys/stat.h>
 #include <functional>
 
 #include "gltf_common.h"
@@ -36,8 +38,27 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
       throw InputError(path, "GLB container version " + std::to_string(glbVersion) + " (glTF 2.0 needs version 2)");
     ok = loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
                                      unsigned(bytes.size()), baseDir);
-  } else
+  } else {
+    // External buffer and image files must be regular files: tinygltf would try to
+    // read a directory as a file of size 2^63.
+    try {
+      const auto doc = nlohmann::json::parse(bytes);
+      for (const char* key : {"buffers", "images"})
+        if (doc.contains(key) && doc[key].is_array())
+          for (const auto& item : doc[key])
+            if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
+              const std::string uri = item["uri"].get<std::string>();
+              if (uri.rfind("data:", 0) == 0) continue;
+              struct stat st {};
+              const std::string file = baseDir + "/" + uri;
+              if (::stat(file.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+                throw InputError(path, std::string(key) + " uri '" + uri + "' is not a regular file");
+            }
+    } catch (const nlohmann::json::exception&) {
+      // not JSON: tinygltf reports the syntax error below
+    }
     ok = loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir);
+  }
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
     throw InputError(path, "not a valid glTF 2.0 file: " + (err.empty() ? std::string("parse error") : err));
