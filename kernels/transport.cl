@@ -35,6 +35,13 @@
 #define CHANNELS 1
 #endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
+// Per-coefficient loops of the packet kernels are unrolled up to order 8, so their
+// accumulators stay in registers instead of a load, add and store per coefficient.
+#if SH_ORDER <= 8
+#define UNROLL _Pragma("unroll")
+#else
+#define UNROLL
+#endif
 
 #if !BVH_PACKET
 
@@ -153,6 +160,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
   floatP acc[SH_COUNT];
+  UNROLL
   for (int k = 0; k < SH_COUNT; ++k) acc[k] = (floatP)(0.0f);
   intP seen = (intP)(0);
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
@@ -178,6 +186,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       seen -= live;  // live lanes are −1
       floatP y[SH_COUNT];
       sh_eval(SH_ORDER, dx, dy, dz, y);
+      UNROLL
       for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
     }
   }
