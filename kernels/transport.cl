@@ -47,7 +47,10 @@
 
 // Direct (bounce 0) transport, one work-item per vertex.
 // vertexCount, sampleCount: V and N
-// origins:  V × (x, y, z, 0), ray origins already offset along the geometric normal
+// origins:  V × (x, y, z, w), ray origins already offset along the geometric normal;
+//           w = 1 marks a vertex whose hemisphere no triangle can reach (transport.h,
+//           unoccludableVertices): the direct kernels trace no rays for it, so one
+//           launch serves both kinds of vertex. w = 0 otherwise.
 // frames:   V × 3 float4 (t, b, n); n = 0 marks a vertex without a normal (zero output)
 // dirs:     N × (x, y, z, 0) local cosine-distributed directions
 // nodes, tris: the BVH (unused when VISIBILITY is 0)
@@ -66,10 +69,11 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
   int seen = 0;
   if (dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
     const float3 o = origins[vi].xyz;
+    const bool trace = origins[vi].w == 0.0f;
     for (int s = 0; s < sampleCount; ++s) {
       const float3 d = sampling_to_world(frame, dirs[s]);
 #if VISIBILITY
-      if (bvh_occluded(nodes, tris, o, d, tMax)) continue;
+      if (trace && bvh_occluded(nodes, tris, o, d, tMax)) continue;
 #endif
       ++seen;
       float y[SH_COUNT];
@@ -166,6 +170,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
   if (dot(n, n) > 0.0f) {
     const float3 o = origins[vi].xyz;
+    const bool trace = origins[vi].w == 0.0f;
     intP lane;
 #if BVH_PACKET == 16
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -181,7 +186,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       const floatP dz = t.z * lx + b.z * ly + n.z * lz;
       intP live = (lane + s) < sampleCount;
 #if VISIBILITY
-      live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
+      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
 #endif
       seen -= live;  // live lanes are −1
       floatP y[SH_COUNT];

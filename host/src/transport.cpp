@@ -176,25 +176,18 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   // scene.unoccludable is indexed by the whole mesh's vertices; this call covers [first, first + nv).
   auto unoccludable = [&](int v) { return scene.unoccludable.empty() ? uint8_t(0) : scene.unoccludable[first + size_t(v)]; };
   for (int v = 0; v < nv; ++v) r.verticesUnoccludable += unoccludable(v);
-  if (r.verticesUnoccludable == 0) {
-    q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
-    q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
-    q.enqueueReadBuffer(visible, CL_TRUE, 0, vis.size() * 4, vis.data());
-  } else {
-    // Unoccludable vertices take the unshadowed kernel (same directions, no rays).
-    detail::DirectRunner runner(rt, o, scene.nodes, scene.tris, scene.tMax);
-    for (int skip = 0; skip < 2; ++skip) {
-      std::vector<uint32_t> list;
-      for (int v = 0; v < nv; ++v)
-        if (unoccludable(v) == skip) list.push_back(uint32_t(v));
-      std::vector<float> c, f;
-      runner.run(setup, list, skip == 0, c, f);
-      for (size_t i = 0; i < list.size(); ++i) {
-        std::copy_n(&c[i * nc], nc, &t0[size_t(list[i]) * nc]);
-        vis[list[i]] = f[i];
-      }
-    }
+  if (r.verticesUnoccludable > 0) {
+    // Unoccludable vertices are marked in the origins' w (transport.cl): the same launch
+    // computes them without rays, with the same directions as every other vertex.
+    std::vector<float> marked = setup.origins;
+    for (int v = 0; v < nv; ++v)
+      if (unoccludable(v)) marked[4 * size_t(v) + 3] = 1.0f;
+    scene.origins = upload(rt, marked);
+    kd.setArg(2, scene.origins);
   }
+  q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
+  q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
+  q.enqueueReadBuffer(visible, CL_TRUE, 0, vis.size() * 4, vis.data());
   r.totalSamples = uint64_t(nv) * uint64_t(o.samples);
   if (visibility) r.rays += uint64_t(nv - int(r.verticesUnoccludable)) * uint64_t(o.samples);
 

