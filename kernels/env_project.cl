@@ -125,6 +125,19 @@ inline void load_tail(__global const float* rgbRow, __global const float* wRow, 
 #endif
 }
 
+// Lanes c0..c0+VW-1 of a row: RGB de-interleaved and the weights (solid angles).
+inline void load_texels(__global const float* rgbRow, __global const float* wRow, int c0, int n, SH_T* r,
+                        SH_T* g, SH_T* b, SH_T* w) {
+  if (c0 + VW <= n) {
+    SH_T tr, tg, tb;
+    LOAD_RGB(rgbRow + 3 * c0, tr, tg, tb);
+    *r = tr, *g = tg, *b = tb;
+    *w = VLOAD(wRow + c0);
+  } else {
+    load_tail(rgbRow, wRow, c0, n, r, g, b, w);
+  }
+}
+
 // One work-item per face row.
 // rgb:      6 faces × n rows × n columns × RGB, interleaved float
 // weights:  exact texel solid angles of rows 0..(n+1)/2-1 (rows mirror: Ω(r) = Ω(n-1-r)), n per row
@@ -147,12 +160,7 @@ __kernel void project_cube(__global const float* rgb, __global const float* weig
   float invN2 = 2.0f / n;
   for (int c0 = 0; c0 < n; c0 += VW) {
     SH_T r, g, b, w;
-    if (c0 + VW <= n) {
-      LOAD_RGB(rgbRow + 3 * c0, r, g, b);
-      w = VLOAD(wRow + c0);
-    } else {
-      load_tail(rgbRow, wRow, c0, n, &r, &g, &b, &w);
-    }
+    load_texels(rgbRow, wRow, c0, n, &r, &g, &b, &w);
     SH_T u = ((SH_T)(c0 + 0.5f) + LANES) * invN2 - 1.0f;
     SH_T x = u * B[0] + ox, y = u * B[1] + oy, z = u * B[2] + oz;
     SH_T inv = rsqrt(x * x + y * y + z * z);
@@ -185,12 +193,7 @@ __kernel void project_cube_moments(__global const float* rgb, __global const flo
   float invN2 = 2.0f / n, v2p1 = 1.0f + v * v;
   for (int c0 = 0; c0 < n; c0 += VW) {
     SH_T r, g, b, w;
-    if (c0 + VW <= n) {
-      LOAD_RGB(rgbRow + 3 * c0, r, g, b);
-      w = VLOAD(wRow + c0);
-    } else {
-      load_tail(rgbRow, wRow, c0, n, &r, &g, &b, &w);
-    }
+    load_texels(rgbRow, wRow, c0, n, &r, &g, &b, &w);
     SH_T u = ((SH_T)(c0 + 0.5f) + LANES) * invN2 - 1.0f;
     SH_T ir = rsqrt(u * u + v2p1);
     SH_T basis[NM];

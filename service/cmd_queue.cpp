@@ -31,6 +31,7 @@
 #include <thread>
 
 #include "cli.h"
+#include "manifest.h"
 #include "prtbake/error.h"
 #include "runner.h"
 
@@ -52,15 +53,6 @@ std::string hostName() {
   for (auto& c : h)
     if (c == '/') c = '_';
   return h;
-}
-
-std::string utcNow() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm {};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
 }
 
 // Renames without replacing an existing file where the filesystem supports it.
@@ -162,7 +154,7 @@ class Worker {
     {
       Heartbeat heartbeat(claim, std::clamp(staleAfterSeconds_ / 4.0, 0.5, 60.0));
       reporter_.setCapture(&log);
-      reporter_.status("[claimed] " + name + " (worker " + host_ + ":" + std::to_string(pid_) + ", " + utcNow() + ")");
+      reporter_.status("[claimed] " + name + " (worker " + host_ + ":" + std::to_string(pid_) + ", " + jobs::utcNow() + ")");
       reporter_.event({{"event", "claimed"}, {"file", name}, {"host", host_}, {"pid", pid_}});
       try {
         totals = runner_.run({{claim, name, dir_ + "/pending"}});
@@ -176,7 +168,7 @@ class Worker {
     const bool ok = totals.allSucceeded();
     const std::string dest = ok ? "done" : "failed";
     const std::string stem = name.substr(0, name.size() - 5);
-    appendLog(sub(dest, stem + ".log"), log.str() + "finished " + utcNow() + ": " + dest + "\n\n");
+    appendLog(sub(dest, stem + ".log"), log.str() + "finished " + jobs::utcNow() + ": " + dest + "\n\n");
     if (::rename(claim.c_str(), sub(dest, name).c_str()) != 0) {
       reporter_.error(claim + ": cannot move to " + dest + "/: " + std::strerror(errno) +
                       " (was the claim reclaimed? raise --stale-after)");

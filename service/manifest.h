@@ -27,6 +27,9 @@ std::vector<InputHash> hashInputs(const std::vector<std::string>& files);
 json makeManifest(const Job& job, const std::vector<InputHash>& inputs, const std::string& device,
                   const json& timings, const json& report);
 
+// The current time as ISO 8601 UTC ("2026-11-22T16:55:33Z"), for manifests and logs.
+std::string utcNow();
+
 // Why `job` must run: "" when its manifest shows it is up to date, otherwise a
 // short reason ("no manifest", "parameters changed: order", "input changed: <path>", ...).
 std::string whyOutOfDate(const Job& job);

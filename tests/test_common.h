@@ -48,11 +48,11 @@ struct CliResult {
   int exitCode;
   std::string output;  // stdout and stderr together
 };
-// Runs the built prtbake executable with `args` (a shell-quoted string).
-inline CliResult runCli(const std::string& args) {
-  const std::string cmd = std::string("'") + PRTBAKE_CLI_PATH + "' " + args + " 2>&1";
+// Runs a shell command line; stdout and stderr together. A command killed by a
+// signal reports 128 + the signal number, as the shell does.
+inline CliResult runShell(const std::string& cmd) {
   CliResult r{-1, {}};
-  FILE* p = ::popen(cmd.c_str(), "r");
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
   if (!p) return r;
   char buf[4096];
   size_t n;
@@ -61,6 +61,9 @@ inline CliResult runCli(const std::string& args) {
   r.exitCode = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
   return r;
 }
+
+// Runs the built prtbake executable with `args` (a shell-quoted string).
+inline CliResult runCli(const std::string& args) { return runShell(std::string("'") + PRTBAKE_CLI_PATH + "' " + args); }
 
 inline bool fileExists(const std::string& path) {
   struct stat st {};

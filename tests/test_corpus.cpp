@@ -24,18 +24,6 @@ const char* const kTimeout = "timeout 60 ";
 
 const std::string kCorpus = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/corpus";
 
-CliResult shell(const std::string& cmd) {
-  CliResult r{-1, {}};
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int st = ::pclose(p);
-  r.exitCode = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  return r;
-}
-
 std::string cli() { return std::string(kTimeout) + "'" + PRTBAKE_CLI_PATH + "' "; }
 
 // Corpus files with one of the extensions, sorted.
@@ -105,7 +93,7 @@ TEST_CASE("corpus: env fails cleanly on every bad image", "[corpus]") {
     const std::string outDir = dir + "/out";
     fs::remove_all(outDir);
     fs::create_directories(outDir);
-    const CliResult r = shell(cli() + "env '" + input + "' -o '" + outDir + "/sh.json' --games202 '" + outDir +
+    const CliResult r = runShell(cli() + "env '" + input + "' -o '" + outDir + "/sh.json' --games202 '" + outDir +
                               "/light.txt' --quiet");
     INFO(r.output);
     CHECK(r.exitCode == 1);
@@ -139,7 +127,7 @@ TEST_CASE("corpus: transport jobs fail cleanly on every bad mesh", "[corpus]") {
       job << R"({"jobs": [{"id": ")" << id << R"(", "type": "transport", "input": ")" << input
           << R"(", "outputs": {"npy": "out/t.npy", "games202": "out/transport.txt"}}]})" << "\n";
     }
-    const CliResult r = shell(cli() + "run '" + jobDir + "/job.json' --quiet");
+    const CliResult r = runShell(cli() + "run '" + jobDir + "/job.json' --quiet");
     INFO(r.output);
     CHECK((r.exitCode == 1 || r.exitCode == 2));
     CHECK(r.output.rfind("prtbake: error: ", 0) == 0);
@@ -160,7 +148,7 @@ TEST_CASE("corpus: run fails cleanly on every bad job file, naming it on every l
     fs::copy_file(src, runDir + "/" + name);
     writeWhiteLatLong(runDir + "/white.exr");  // the input the valid parts of the jobs name
     const std::string path = runDir + "/" + name;
-    const CliResult r = shell(cli() + "run '" + path + "' --quiet");
+    const CliResult r = runShell(cli() + "run '" + path + "' --quiet");
     INFO(r.output);
     CHECK(r.exitCode == 1);
     const auto ls = lines(r.output);
@@ -170,7 +158,7 @@ TEST_CASE("corpus: run fails cleanly on every bad job file, naming it on every l
   }
   // A directory where a job file is expected.
   fs::create_directories(dir + "/directory.json");
-  const CliResult r = shell(cli() + "run '" + dir + "/directory.json' --quiet");
+  const CliResult r = runShell(cli() + "run '" + dir + "/directory.json' --quiet");
   INFO(r.output);
   CHECK((r.exitCode == 1 || r.exitCode == 2));
   CHECK(r.output.rfind("prtbake: error: " + dir + "/directory.json", 0) == 0);

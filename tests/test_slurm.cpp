@@ -27,25 +27,13 @@ constexpr double kJobDeadlineSeconds = 150;
 
 std::string q(const std::string& s) { return "'" + s + "'"; }
 
-CliResult shell(const std::string& cmd) {
-  CliResult r{-1, {}};
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int st = ::pclose(p);
-  r.exitCode = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  return r;
-}
-
 const std::string kClusterScript = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/slurm/cluster.sh";
 
 // Why the cluster cannot be started here ("" when it can).
 std::string whyNoCluster() {
   if (::geteuid() != 0) return "not root (the test cluster's daemons run as root)";
   for (const char* c : {"slurmctld", "slurmd", "munged", "sbatch", "squeue", "scontrol", "setpriv"})
-    if (shell(std::string("command -v ") + c).exitCode != 0)
+    if (runShell(std::string("command -v ") + c).exitCode != 0)
       return std::string(c) + " is not installed (apt-get install slurm-wlm munge)";
   return "";
 }
@@ -55,15 +43,15 @@ struct Cluster {
   std::string dir;
   CliResult start;
   explicit Cluster(const std::string& d) : dir(d) {
-    start = shell(q(kClusterScript) + " start " + q(dir));
+    start = runShell(q(kClusterScript) + " start " + q(dir));
     ::setenv("SLURM_CONF", (dir + "/slurm.conf").c_str(), 1);
   }
   ~Cluster() {
-    shell(q(kClusterScript) + " stop " + q(dir));
+    runShell(q(kClusterScript) + " stop " + q(dir));
     ::unsetenv("SLURM_CONF");
   }
   std::string logs() const {
-    return shell("tail -n 20 " + q(dir) + "/slurmctld.log " + q(dir) + "/slurmd.log").output;
+    return runShell("tail -n 20 " + q(dir) + "/slurmctld.log " + q(dir) + "/slurmd.log").output;
   }
 };
 
@@ -82,7 +70,7 @@ std::pair<std::string, std::string> submit(const std::string& jobFile, int tasks
 
 // "JobState=..." of a job (or array task "ID_T").
 std::string jobState(const std::string& id) {
-  const std::string out = shell("scontrol show job " + id).output;
+  const std::string out = runShell("scontrol show job " + id).output;
   const auto at = out.find("JobState=");
   return at == std::string::npos ? "?" : out.substr(at + 9, out.find(' ', at) - at - 9);
 }
@@ -91,7 +79,7 @@ std::string jobState(const std::string& id) {
 std::string waitForMerge(const std::string& array, const std::string& merge) {
   const auto t0 = Clock::now();
   while (std::chrono::duration<double>(Clock::now() - t0).count() < kJobDeadlineSeconds) {
-    const CliResult r = shell("squeue -h -j " + array + "," + merge);
+    const CliResult r = runShell("squeue -h -j " + array + "," + merge);
     if (r.exitCode == 0 && r.output.find_first_not_of(" \n") == std::string::npos) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
@@ -136,14 +124,14 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
     std::string victim;
     const auto t0 = Clock::now();
     while (victim.empty() && std::chrono::duration<double>(Clock::now() - t0).count() < 60) {
-      const CliResult running = shell("squeue -h -r -j " + array + " -t R -o %K");
+      const CliResult running = runShell("squeue -h -r -j " + array + " -t R -o %K");
       std::istringstream ss(running.output);
       std::string task;
       if (ss >> task) {
         std::this_thread::sleep_for(std::chrono::milliseconds(400));  // past the OpenCL start-up
         const std::string manifest = dir + "/out/scene.npy.shard-" + task + "-of-8.npy.manifest.json";
         if (!fileExists(manifest) && jobState(array + "_" + task) == "RUNNING") {
-          const CliResult rq = shell("scontrol requeue " + array + "_" + task);
+          const CliResult rq = runShell("scontrol requeue " + array + "_" + task);
           INFO(rq.output);
           REQUIRE(rq.exitCode == 0);
           victim = task;
@@ -153,7 +141,7 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
           const std::string id = array + "_" + task;
           for (int i = 0; i < 100 && jobState(id) != "PENDING"; ++i)
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
-          const CliResult now = shell("scontrol update jobid=" + id + " starttime=now");
+          const CliResult now = runShell("scontrol update jobid=" + id + " starttime=now");
           INFO(now.output);
           CHECK(now.exitCode == 0);
         }
@@ -165,7 +153,7 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
     INFO("merge job " << merge << ": " << state << "\n" << readText(dir + "/.prtbake-slurm-jobs/logs/merge.out")
                       << cluster.logs());
     REQUIRE(state == "COMPLETED");
-    CHECK_THAT(shell("scontrol show job " + array + "_" + victim).output, Catch::Contains("Restarts=1"));
+    CHECK_THAT(runShell("scontrol show job " + array + "_" + victim).output, Catch::Contains("Restarts=1"));
     requireSameBytes(dir + "/ref/scene.npy", dir + "/out/scene.npy");
     requireSameBytes(dir + "/ref/scene.txt", dir + "/out/scene.txt");
   }
