@@ -36,7 +36,7 @@ int runTransport(const CommandLine& cl) {
   if (cl.has("max-samples") && !cl.has("tolerance"))
     throw UsageError("--max-samples", "only applies with --tolerance");
   if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
-  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, 128, 1 << 24));
+  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, kTransportToleranceMinSamples, 1 << 24));
   if (cl.has("sampler")) o.sampler = parseTransportSampler(cl.get("sampler"));
   o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
   o.bounces = int(cl.getInt("bounces", 3, 1, 64));

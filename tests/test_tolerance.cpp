@@ -1,7 +1,8 @@
-// Adaptive sample counts ("--tolerance E") for transport and LUTs: the achieved error
-// against analytic/double references (asserted: ≥ 95 % of vertices/texels below E), and
-// the total sample count against the uniform count that reaches the same maximum error
-// (reported as warnings; see the LUT case for why it is not asserted).
+// Adaptive sample counts ("--tolerance E") for transport and LUTs, against analytic/double
+// references. Criterion (1), ≥ 95 % of vertices/texels below E, is asserted everywhere.
+// Criterion (2), the adaptive total below the total of the smallest power-of-two uniform
+// count (default sampler) whose maximum error is ≤ the adaptive run's maximum error, is
+// asserted on the sphere and reported (CHECK_NOFAIL) where it does not hold yet.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -68,34 +69,46 @@ Errors lutErrors(const LutResult& lut, const LutValues& ref) {
 }
 
 // The smallest power-of-two uniform sample count whose maximum error is ≤ target
-// (0 when none up to maxSamples); *samplesTotal gets its total.
+// (0 when none up to maxSamples).
 template <class Run>
 int uniformSamplesFor(double target, int maxSamples, Run&& maxErrorAt) {
   for (int n = 16; n <= maxSamples; n *= 2)
     if (maxErrorAt(n) <= target) return n;
   return 0;
 }
+
+// Total of the uniform run at `perItem` samples (0: none up to the cap reached the
+// adaptive maximum error, so uniform needs more than the cap: counted as 2 × cap).
+double uniformTotal(int perItem, int cap, size_t items) {
+  return double(perItem > 0 ? perItem : 2 * cap) * double(items);
+}
 }  // namespace
 
 TEST_CASE("Tolerance: convex sphere against Funk-Hecke", "[tolerance][transport]") {
   constexpr double kTolerance = 1e-3;
   const Mesh sphere = makeUvSphere(1.0, 12, 24);
-  TransportOptions o;
-  o.mode = TransportMode::Shadowed;
-  o.tolerance = kTolerance;
-  const TransportResult r = computeTransport(test::runtime(), sphere, o);
-  const Errors e = sphereErrors(sphere, r);
-  REQUIRE(r.verticesUnoccludable == sphere.vertexCount());
-  const int uniform = uniformSamplesFor(e.max(), 65536, [&](int n) {
-    TransportOptions u = o;
-    u.tolerance = 0, u.samples = n;
-    return sphereErrors(sphere, computeTransport(test::runtime(), sphere, u)).max();
-  });
-  const double uniformTotal = double(uniform) * double(sphere.vertexCount());
-  WARN("sphere E=" << kTolerance << ": below E " << e.fractionBelow(kTolerance) << ", max error " << e.max()
-                   << ", estimate max " << r.maxErrorEstimate << ", adaptive samples " << r.totalSamples
-                   << ", uniform " << uniform << "/vertex = " << uniformTotal << ", at cap " << r.verticesAtCap);
-  CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
+  // Shadowed: every vertex is unoccludable and takes the closed form (no samples).
+  // Unshadowed: every vertex is sampled, a smooth integrand.
+  for (TransportMode mode : {TransportMode::Shadowed, TransportMode::Unshadowed}) {
+    TransportOptions o;
+    o.mode = mode;
+    o.tolerance = kTolerance;
+    const TransportResult r = computeTransport(test::runtime(), sphere, o);
+    const Errors e = sphereErrors(sphere, r);
+    if (mode == TransportMode::Shadowed) REQUIRE(r.verticesUnoccludable == sphere.vertexCount());
+    const int uniform = uniformSamplesFor(e.max(), o.toleranceMaxSamples, [&](int n) {
+      TransportOptions u = o;
+      u.tolerance = 0, u.samples = n;
+      return sphereErrors(sphere, computeTransport(test::runtime(), sphere, u)).max();
+    });
+    const double total = uniformTotal(uniform, o.toleranceMaxSamples, sphere.vertexCount());
+    WARN("sphere " << transportModeName(mode) << " E=" << kTolerance << ": below E " << e.fractionBelow(kTolerance)
+                   << ", max error " << e.max() << ", estimate max " << r.maxErrorEstimate << ", adaptive samples "
+                   << r.totalSamples << ", uniform " << uniform << "/vertex = " << total << ", at cap "
+                   << r.verticesAtCap);
+    CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
+    CHECK(double(r.totalSamples) < total);
+  }
 }
 
 TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance][transport]") {
@@ -112,11 +125,17 @@ TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance
     u.tolerance = 0, u.samples = n;
     return cavityErrors(cavity, computeTransport(test::runtime(), cavity, u), alpha).max();
   });
-  const double uniformTotal = double(uniform) * double(cavity.vertexCount());
+  // Uniform sampling traces every vertex (the cavity has no unoccludable ones).
+  const double total = uniformTotal(uniform, o.toleranceMaxSamples, cavity.vertexCount());
   WARN("cavity E=" << kTolerance << ": below E " << e.fractionBelow(kTolerance) << ", max error " << e.max()
                    << ", estimate max " << r.maxErrorEstimate << ", adaptive samples " << r.totalSamples
-                   << ", uniform " << uniform << "/vertex = " << uniformTotal << ", at cap " << r.verticesAtCap);
+                   << ", uniform " << uniform << "/vertex = " << total << ", at cap " << r.verticesAtCap);
   CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
+  // Criterion (2) is not met here yet (measured: adaptive 2.1e6 samples, max error 1.5e-3,
+  // against 1.2e6 for uniform Hammersley at 2048/vertex): the prefix-difference estimate
+  // varies too much from vertex to vertex on this discontinuous (visibility) integrand,
+  // see docs/accuracy.md. Reported, not failed, until the estimator is fixed.
+  CHECK_NOFAIL(double(r.totalSamples) < total);
 }
 
 TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
@@ -137,18 +156,17 @@ TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
     u.tolerance = 0, u.samples = n;
     return lutErrors(computeLut(test::runtime(), u), ref).max();
   });
-  const double uniformTotal = double(uniform) * o.size * o.size;
+  const double total = uniformTotal(uniform, o.toleranceMaxSamples, size_t(o.size) * o.size);
   WARN("lut E=" << kTolerance << ": below E " << e.fractionBelow(kTolerance) << ", max error " << e.max()
                 << ", estimate max " << lut.errorEstimateMax << ", adaptive samples " << lut.totalSamples
-                << ", uniform " << uniform << "/texel = " << uniformTotal << ", at cap " << lut.texelsAtCap);
+                << ", uniform " << uniform << "/texel = " << total << ", at cap " << lut.texelsAtCap);
   CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
   CHECK(uniform > 0);
-  // Not asserted: "fewer total samples than the uniform count at equal maximum error".
-  // Measured here (32², E = 1e-3): adaptive 3.2e6 samples against 5.2e5 for uniform
-  // Hammersley at 512/texel; four randomised replicas of n/4 points converge more
-  // slowly than one n-point set, and the adaptive maximum error is set by a few
-  // low-roughness texels whose rare zero-weight samples all replicas can miss
-  // (docs/accuracy.md).
+  // Criterion (2) is not met here yet (measured: adaptive 2.1e6 samples, max error 1.7e-3,
+  // against 1.0e6 for the uniform table at 1024/texel): a few low-roughness, grazing
+  // texels stop with an estimate several times below their error, and they set the
+  // maximum (docs/accuracy.md). Reported, not failed, until the estimator is fixed.
+  CHECK_NOFAIL(double(lut.totalSamples) < total);
 }
 
 TEST_CASE("Tolerance: command line and sidecars", "[tolerance][cli]") {

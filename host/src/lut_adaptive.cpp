@@ -1,13 +1,18 @@
 // Adaptive sample counts for the LUT ("--tolerance E"; see lut.h).
 //
-// R = kLutReplicas Hammersley sets with independent Cranley–Patterson shifts (drawn
-// from the round and the replica). Round j adds m_j fresh samples per replica to every
-// unconverged texel (m_0 = n0, then m_j = n0·2^(j−1): N_j = n0·2^j per replica) and keeps
-// the sample-weighted mean of each replica:
-//   X̂_r,c = (Σ_rounds m_j X̂_r,c^(j)) / N_j,   X̂_c = (1/R) Σ_r X̂_r,c,
-//   s_c² = (1/(R−1)) Σ_r (X̂_r,c − X̂_c)²,   err = K max_c s_c/√R   (K = kLutErrorFactor),
-// for the channels c = A, B (and cloth). A texel stops when err < E or when one more
-// round would pass the cap (then it is counted at the cap).
+// Every texel takes the points of ONE 2-D Sobol' sequence (sobol.h, unshifted: the
+// uniform tables share one unshifted Hammersley set too), in blocks: round 0 takes
+// points [0, n0), round j ≥ 1 points [N/2, N) with N = n0·2^j, so a texel at N samples
+// holds exactly the first N points, a (0, log₂N, 2)-net like the N-point Hammersley set
+// of the uniform path. With X̂_c(N) the mean of channel c over the first N points
+// (channels A, B and cloth) and the differences of successive prefixes
+//   d(N) = max_c |X̂_c(N) − X̂_c(N/2)|,
+// a sequence whose error falls like 1/N has |X̂(N) − X̂(N/2)| ≈ err(N/2) ≈ 2 err(N). The
+// estimate takes the last two differences, so that one lucky coincidence of two prefix
+// means does not stop a texel:
+//   err(N) = K · max(d(N), d(N/2)/2)   (K = kLutErrorFactor),
+// defined from N = 4 n0 on. A texel stops at the first N ≥ kLutToleranceMinSamples with
+// err(N) < E, or when one more round would pass the cap (then it is counted at the cap).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -16,15 +21,6 @@
 #include "prtbake/error.h"
 
 namespace prtbake::detail {
-namespace {
-uint64_t mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-double unit(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }
-}  // namespace
 
 LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
   const auto tStart = std::chrono::steady_clock::now();
@@ -35,9 +31,8 @@ LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
   const int n = options.size;
   const size_t texels = size_t(n) * n;
   const int nch = options.cloth ? 3 : 2;
-  constexpr int R = kLutReplicas;
-  const int n0 = kLutMinReplicaSamples;
-  std::vector<double> acc(size_t(R) * texels * nch, 0.0);
+  const int n0 = kLutToleranceMinSamples / 4;
+  std::vector<double> sum(texels * nch, 0.0), prev(texels * nch, 0.0), dPrev(texels, 0.0);
   r.a.assign(texels, 0.0f), r.b.assign(texels, 0.0f);
   std::vector<float> cloth(options.cloth ? texels : 0, 0.0f), stdErr(texels, 0.0f);
   r.errorEstimate.assign(texels, 0.0f);
@@ -45,64 +40,64 @@ LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
   std::vector<uint32_t> active(texels);
   for (size_t t = 0; t < texels; ++t) active[t] = uint32_t(t);
   for (int round = 0; !active.empty(); ++round) {
-    const int m = round == 0 ? n0 : n0 << (round - 1);
-    const int total = n0 << round;
+    const int total = n0 << round;              // points per texel after this round
+    const int first = round == 0 ? 0 : total / 2;  // this round's block [first, total)
     std::vector<std::pair<float, float>> pts(active.size());
     for (size_t i = 0; i < active.size(); ++i) {
       const size_t col = active[i] % size_t(n), row = active[i] / size_t(n);
       pts[i] = {float((col + 0.5) / n), float(lutAlpha(options, (row + 0.5) / n))};
     }
     LutOptions ro = options;
-    ro.samples = m;
+    ro.samples = total - first;
     ro.tolerance = 0;
-    for (int rep = 0; rep < R; ++rep) {
-      const uint64_t h = mix(uint64_t(round) * 64 + uint64_t(rep) + 1);
-      std::vector<float> a, b, c;
-      evaluateLutShifted(rt, ro, pts, unit(h), unit(mix(h)), a, b, c, &r.kernelSeconds);
-      for (size_t i = 0; i < active.size(); ++i) {
-        double* x = &acc[(size_t(rep) * texels + active[i]) * nch];
-        x[0] += double(m) * a[i], x[1] += double(m) * b[i];
-        if (nch == 3) x[2] += double(m) * c[i];
-      }
-    }
+    std::vector<float> a, b, c;
+    evaluateLutSobol(rt, ro, pts, uint32_t(first), a, b, c, &r.kernelSeconds);
     std::vector<uint32_t> next;
-    for (uint32_t t : active) {
-      double errMax = 0;
-      for (int c = 0; c < nch; ++c) {
-        double mean = 0, sq = 0;
-        for (int rep = 0; rep < R; ++rep) mean += acc[(size_t(rep) * texels + t) * nch + c] / total;
-        mean /= R;
-        for (int rep = 0; rep < R; ++rep) {
-          const double d = acc[(size_t(rep) * texels + t) * nch + c] / total - mean;
-          sq += d * d;
-        }
-        errMax = std::max(errMax, std::sqrt(sq / (R - 1) / R));
-        (c == 0 ? r.a : c == 1 ? r.b : cloth)[t] = float(mean);
+    for (size_t i = 0; i < active.size(); ++i) {
+      const uint32_t t = active[i];
+      const float x[3] = {a[i], b[i], nch == 3 ? c[i] : 0.0f};
+      double d = 0;
+      for (int ch = 0; ch < nch; ++ch) {
+        double& s = sum[t * nch + ch];
+        s += double(ro.samples) * x[ch];
+        const double mean = s / total;
+        d = std::max(d, std::abs(mean - prev[t * nch + ch]));
+        prev[t * nch + ch] = mean;
+        (ch == 0 ? r.a : ch == 1 ? r.b : cloth)[t] = float(mean);
       }
-      stdErr[t] = float(errMax);
-      r.errorEstimate[t] = float(kLutErrorFactor * errMax);
-      r.samplesPerTexel[t] = R * total;
-      if (r.errorEstimate[t] < options.tolerance) continue;
-      if (int64_t(R) * total * 2 > options.toleranceMaxSamples) {
+      r.samplesPerTexel[t] = total;
+      if (round == 0) continue;  // no difference yet
+      const double err = kLutErrorFactor * std::max(d, dPrev[t] / 2);
+      const bool defined = round >= 2;
+      dPrev[t] = d;
+      stdErr[t] = float(err);
+      r.errorEstimate[t] = float(err);
+      if (!defined) {
+        next.push_back(t);
+        continue;
+      }
+      if (total >= kLutToleranceMinSamples && err < options.tolerance) continue;
+      if (int64_t(total) * 2 > options.toleranceMaxSamples) {
         ++r.texelsAtCap;
         continue;
       }
       next.push_back(t);
     }
+    if (round == 0) next = active;
     active.swap(next);
   }
   finishLut(r, cloth, stdErr);
-  double sum = 0;
+  double errSum = 0;
   for (size_t t = 0; t < texels; ++t) {
     r.errorEstimateMax = std::max(r.errorEstimateMax, double(r.errorEstimate[t]));
-    sum += r.errorEstimate[t];
+    errSum += r.errorEstimate[t];
     const int s = r.samplesPerTexel[t];
     r.totalSamples += uint64_t(s);
     const size_t k = size_t(std::lround(std::log2(double(s))));
     if (r.samplesHistogram.size() <= k) r.samplesHistogram.resize(k + 1, 0);
     ++r.samplesHistogram[k];
   }
-  r.errorEstimateMean = texels ? sum / double(texels) : 0;
+  r.errorEstimateMean = texels ? errSum / double(texels) : 0;
   r.totalSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
   return r;
 }

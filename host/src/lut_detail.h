@@ -2,6 +2,7 @@
 // lut_adaptive.cpp.
 #pragma once
 
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -14,11 +15,11 @@ namespace prtbake::detail {
 void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<float>& stdErr);
 // The texel centres of an n×n table, row major.
 std::vector<LutPoint> texelPoints(int n);
-// The kernel at (μ, α) points with o.samples Hammersley points shifted by (s1, s2)
-// (Cranley–Patterson, modulo 1); adds the kernel time to *kernelSeconds.
-void evaluateLutShifted(Runtime& rt, const LutOptions& o, const std::vector<std::pair<float, float>>& muAlpha,
-                        double s1, double s2, std::vector<float>& a, std::vector<float>& b,
-                        std::vector<float>& cloth, double* kernelSeconds);
+// The kernel at (μ, α) points, each the mean over the o.samples points first, first + 1, …
+// of the 2-D Sobol' sequence (sobol.h); adds the kernel time to *kernelSeconds.
+void evaluateLutSobol(Runtime& rt, const LutOptions& o, const std::vector<std::pair<float, float>>& muAlpha,
+                      uint32_t first, std::vector<float>& a, std::vector<float>& b, std::vector<float>& cloth,
+                      double* kernelSeconds);
 // The adaptive driver (LutOptions::tolerance > 0).
 LutResult computeLutAdaptive(Runtime& rt, const LutOptions& o);
 

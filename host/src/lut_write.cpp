@@ -79,10 +79,10 @@ nlohmann::json sidecar(const LutResult& lut, const std::string& exrPath, bool ha
     j["parameters"]["samples"] = "adaptive";
     j["parameters"]["tolerance"] = o.tolerance;
     j["adaptive"] = {{"tolerance", o.tolerance},
-                     {"replicas", kLutReplicas},
                      {"error_factor", kLutErrorFactor},
-                     {"estimate", "K * max_channel s_c / sqrt(R): s_c the spread of channel c over R independently "
-                                  "shifted Hammersley sets"},
+                     {"min_samples", kLutToleranceMinSamples},
+                     {"estimate", "K * max(d(N), d(N/2)/2), d(N) = max over channels of |mean of the first N minus "
+                                  "mean of the first N/2 points| of one 2-D Sobol' sequence per texel"},
                      {"achieved_error_max", lut.errorEstimateMax},
                      {"achieved_error_mean", lut.errorEstimateMean},
                      {"samples_total", lut.totalSamples},

@@ -1,15 +1,20 @@
 // Adaptive sample counts for the direct term ("--tolerance E"; see transport.h).
 //
-// R = kTransportReplicas independent randomisations of the sample set (each its own
-// Cranley–Patterson shift and per-vertex rotation, drawn from the seed, the round and
-// the replica). Round j adds to every unconverged vertex m_j fresh samples per replica
-// (m_0 = n0, then m_j = n0·2^(j−1), so replica r holds N_j = n0·2^j samples), and keeps
-// the sample-weighted mean of each replica:
-//   T̂_r,i(p) = (Σ_rounds m_j T̂_r,i^(j)(p)) / N_j,   T̂_i = (1/R) Σ_r T̂_r,i,
-//   s_i² = (1/(R−1)) Σ_r (T̂_r,i − T̂_i)²,   err(p) = K max_i s_i/√R   (K = kTransportErrorFactor).
-// A vertex stops when err(p) < E, or when one more round would exceed the cap
-// (R·N_{j+1} > toleranceMaxSamples; then it is reported at the cap). Each replica is an
-// unbiased randomised-QMC estimate, so s_i/√R estimates the standard error of T̂_i.
+// Every vertex takes the points of ONE 2-D Sobol' sequence (sobol.h) with a digital shift
+// drawn from the seed, mapped to the cosine-weighted hemisphere and turned into the
+// vertex's frame, whose tangent is rotated about the normal by the same per-vertex angle
+// as on the uniform path (makeRaySetup): the rotation decorrelates neighbouring vertices
+// and is identical in every round. Round 0 takes points [0, n0), round j ≥ 1 points
+// [N/2, N) with N = n0·2^j, so a vertex at N samples holds exactly the first N points, a
+// (0, log₂N, 2)-net like the uniform path's N-point Hammersley set. With T̂_i(N) the mean
+// over the first N points and
+//   d(N) = max_i |T̂_i(N) − T̂_i(N/2)|,
+// an error falling like 1/N gives |T̂(N) − T̂(N/2)| ≈ err(N/2) ≈ 2 err(N); the estimate
+// takes the last two differences so that one lucky coincidence does not stop a vertex:
+//   err(p) = K · max(d(N), d(N/2)/2)   (K = kTransportErrorFactor),
+// defined from N = 4 n0 on. A vertex stops at the first N ≥ kTransportToleranceMinSamples
+// with err(p) < E, or when one more round would exceed the cap (2N > toleranceMaxSamples;
+// then it is reported at the cap).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -24,13 +29,6 @@ namespace prtbake::detail {
 namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-uint64_t mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 template <class T>
 cl::Buffer upload(Runtime& rt, const std::vector<T>& v) {
@@ -52,8 +50,7 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
   const int nc = o.order * o.order;
   const size_t nv = mesh.vertexCount();
   const bool visibility = o.mode != TransportMode::Unshadowed;
-  constexpr int R = kTransportReplicas;
-  const int n0 = kTransportMinReplicaSamples;
+  const int n0 = kTransportToleranceMinSamples / 4;
 
   // Scene: the BVH (once), and the vertices that need no rays.
   TransportOptions base = o;
@@ -77,8 +74,7 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
   }
   DirectRunner runner(rt, o, nodes, tris, setup0.tMax);
 
-  std::vector<double> acc(size_t(R) * nv * nc, 0.0);
-  std::vector<int> perReplica(nv, 0);
+  std::vector<double> sum(nv * nc, 0.0), prev(nv * nc, 0.0), dPrev(nv, 0.0);
   r.coeffs.assign(nv * nc, 0.0f);
   r.stdError.assign(nv, 0.0f);
   r.errorEstimate.assign(nv, 0.0f);
@@ -97,54 +93,50 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
     active.push_back(uint32_t(v));
   }
   const auto tKernel = Clock::now();
+  RaySetup setup = setup0;  // frames and origins of the seed; directions per round
   for (int round = 0; !active.empty(); ++round) {
-    const int m = round == 0 ? n0 : n0 << (round - 1);
-    const int total = n0 << round;  // per replica after this round
-    for (int rep = 0; rep < R; ++rep) {
-      TransportOptions ro = o;
-      ro.samples = m;
-      ro.seed = mix(o.seed ^ mix(uint64_t(round) * 64 + uint64_t(rep) + 1));
-      const RaySetup setup = makeRaySetup(mesh, ro);
-      for (int traced = 0; traced < 2; ++traced) {
-        std::vector<uint32_t> list;
-        for (uint32_t v : active)
-          if ((visibility && !unocc[v]) == bool(traced)) list.push_back(v);
-        if (list.empty()) continue;
-        std::vector<float> c, f;
-        runner.run(setup, list, traced == 1, c, f);
-        if (traced) r.rays += uint64_t(list.size()) * uint64_t(m);
-        for (size_t i = 0; i < list.size(); ++i) {
-          double* a = &acc[(size_t(rep) * nv + list[i]) * nc];
-          for (int k = 0; k < nc; ++k) a[k] += double(m) * c[i * nc + k];
-        }
+    const int total = n0 << round;                 // samples per vertex after this round
+    const int first = round == 0 ? 0 : total / 2;  // this round's block [first, total)
+    const int m = total - first;
+    setup.dirs = sobolDirectionsLocal(uint32_t(first), m, o.seed);
+    for (int traced = 0; traced < 2; ++traced) {
+      std::vector<uint32_t> list;
+      for (uint32_t v : active)
+        if ((visibility && !unocc[v]) == bool(traced)) list.push_back(v);
+      if (list.empty()) continue;
+      std::vector<float> c, f;
+      runner.run(setup, list, traced == 1, c, f);
+      if (traced) r.rays += uint64_t(list.size()) * uint64_t(m);
+      for (size_t i = 0; i < list.size(); ++i) {
+        double* a = &sum[size_t(list[i]) * nc];
+        for (int k = 0; k < nc; ++k) a[k] += double(m) * c[i * nc + k];
       }
     }
     std::vector<uint32_t> next;
     for (uint32_t v : active) {
-      double errMax = 0, se2 = 0;
+      double d = 0;
       for (int k = 0; k < nc; ++k) {
-        double mean = 0, sq = 0;
-        for (int rep = 0; rep < R; ++rep) mean += acc[(size_t(rep) * nv + v) * nc + k] / total;
-        mean /= R;
-        for (int rep = 0; rep < R; ++rep) {
-          const double d = acc[(size_t(rep) * nv + v) * nc + k] / total - mean;
-          sq += d * d;
-        }
-        const double s2 = sq / (R - 1);
-        errMax = std::max(errMax, std::sqrt(s2 / R));
-        se2 += s2 / R;
+        const double mean = sum[size_t(v) * nc + k] / total;
+        d = std::max(d, std::abs(mean - prev[size_t(v) * nc + k]));
+        prev[size_t(v) * nc + k] = mean;
         r.coeffs[size_t(v) * nc + k] = float(mean);
       }
-      const double err = kTransportErrorFactor * errMax;
-      r.errorEstimate[v] = float(err);
-      r.stdError[v] = float(std::sqrt(se2));
-      r.samplesPerVertex[v] = R * total;
-      if (err < o.tolerance) continue;
-      if (int64_t(R) * total * 2 > o.toleranceMaxSamples) {
-        ++r.verticesAtCap;
+      r.samplesPerVertex[v] = total;
+      if (round == 0) {  // no difference yet
+        next.push_back(v);
         continue;
       }
-      next.push_back(v);
+      const double err = kTransportErrorFactor * std::max(d, dPrev[v] / 2);
+      dPrev[v] = d;
+      r.errorEstimate[v] = float(err);
+      r.stdError[v] = float(err);
+      if (round < 2 || total < kTransportToleranceMinSamples || !(err < o.tolerance)) {
+        if (int64_t(total) * 2 > o.toleranceMaxSamples) {
+          ++r.verticesAtCap;
+          continue;
+        }
+        next.push_back(v);
+      }
     }
     active.swap(next);
   }

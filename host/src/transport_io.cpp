@@ -160,10 +160,10 @@ std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh
     j["samples"]["per_vertex"] = "adaptive";
     j["samples"]["max_per_vertex"] = r.samples;
     j["adaptive"] = {{"tolerance", o.tolerance},
-                     {"replicas", kTransportReplicas},
                      {"error_factor", kTransportErrorFactor},
-                     {"estimate", "K * max_i s_i / sqrt(R): s_i the spread of coefficient i over R independently "
-                                  "randomised sample sets"},
+                     {"min_samples", kTransportToleranceMinSamples},
+                     {"estimate", "K * max(d(N), d(N/2)/2), d(N) = max over coefficients of |mean of the first N minus "
+                                  "mean of the first N/2 points| of one digitally shifted 2-D Sobol' sequence"},
                      {"achieved_error_max", r.maxErrorEstimate},
                      {"achieved_error_mean", r.meanErrorEstimate},
                      {"samples_histogram", hist},

@@ -8,6 +8,7 @@
 
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
+#include "sobol.h"
 
 namespace prtbake {
 namespace {
@@ -28,6 +29,36 @@ double radicalInverse2(uint32_t i) {
   i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
   i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
   return double(i) * 0x1.0p-32;
+}
+
+// Orders a direction set along a Morton curve over the projected disk (x, y), so that
+// consecutive samples (the packets of the vector kernel) point in nearby directions.
+// The set, and so the estimate, is unchanged up to summation order.
+std::vector<std::array<double, 3>> mortonSorted(const std::vector<std::array<double, 3>>& out) {
+  auto spread = [](uint32_t v) {
+    uint64_t x = v;
+    x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
+    x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
+    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
+    x = (x | (x << 2)) & 0x3333333333333333ull;
+    x = (x | (x << 1)) & 0x5555555555555555ull;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, size_t>> keys(out.size());
+  for (size_t i = 0; i < out.size(); ++i) {
+    const uint32_t qx = uint32_t(std::min(65535.0, (out[i][0] + 1) * 32768.0));
+    const uint32_t qy = uint32_t(std::min(65535.0, (out[i][1] + 1) * 32768.0));
+    keys[i] = {spread(qx) | (spread(qy) << 1), i};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::array<double, 3>> sorted(out.size());
+  for (size_t i = 0; i < out.size(); ++i) sorted[i] = out[keys[i].second];
+  return sorted;
+}
+
+std::array<double, 3> cosineHemisphere(double u1, double u2) {
+  const double r = std::sqrt(u1), phi = 2 * kPi * u2;
+  return {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
 }
 }  // namespace
 
@@ -87,34 +118,28 @@ std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t s
         u1 = j1, u2 = j2;
     }
     u1 -= std::floor(u1), u2 -= std::floor(u2);
-    const double r = std::sqrt(u1), phi = 2 * kPi * u2;
-    out[i] = {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1 - u1))};
+    out[i] = cosineHemisphere(u1, u2);
   }
-  // Order the set along a Morton curve over the projected disk (x, y), so that
-  // consecutive samples (the packets of the vector kernel) point in nearby
-  // directions. The set, and so the estimate, is unchanged up to summation order.
-  auto spread = [](uint32_t v) {
-    uint64_t x = v;
-    x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
-    x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
-    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
-    x = (x | (x << 2)) & 0x3333333333333333ull;
-    x = (x | (x << 1)) & 0x5555555555555555ull;
-    return x;
-  };
-  std::vector<std::pair<uint64_t, size_t>> keys(out.size());
-  for (size_t i = 0; i < out.size(); ++i) {
-    const uint32_t qx = uint32_t(std::min(65535.0, (out[i][0] + 1) * 32768.0));
-    const uint32_t qy = uint32_t(std::min(65535.0, (out[i][1] + 1) * 32768.0));
-    keys[i] = {spread(qx) | (spread(qy) << 1), i};
-  }
-  std::sort(keys.begin(), keys.end());
-  std::vector<std::array<double, 3>> sorted(out.size());
-  for (size_t i = 0; i < out.size(); ++i) sorted[i] = out[keys[i].second];
-  return sorted;
+  return mortonSorted(out);
 }
 
 namespace detail {
+
+std::vector<float> sobolDirectionsLocal(uint32_t first, int count, uint64_t seed) {
+  const uint64_t h = splitmix64(seed ^ 0x5851F42D4C957F2Dull);
+  const uint32_t x0 = uint32_t(h), x1 = uint32_t(h >> 32);
+  std::vector<std::array<double, 3>> out(size_t(std::max(count, 0)));
+  for (int i = 0; i < count; ++i) {
+    double u1, u2;
+    sobolPoint(first + uint32_t(i), x0, x1, u1, u2);
+    out[i] = cosineHemisphere(u1, u2);
+  }
+  const auto sorted = mortonSorted(out);
+  std::vector<float> dirs(sorted.size() * 4, 0.0f);
+  for (size_t i = 0; i < sorted.size(); ++i)
+    for (int c = 0; c < 3; ++c) dirs[4 * i + c] = float(sorted[i][c]);
+  return dirs;
+}
 
 void checkTransportOptions(const TransportOptions& o) {
   if (o.order < 1 || o.order > kMaxTransportOrder)
@@ -131,8 +156,9 @@ void checkTransportOptions(const TransportOptions& o) {
     throw UsageError("--tolerance", "must be a finite number ≥ 0");
   if (o.tolerance > 0 && o.mode == TransportMode::Interreflected)
     throw UsageError("--tolerance", "adaptive sampling applies to unshadowed and shadowed transport (give --samples)");
-  if (o.tolerance > 0 && (o.toleranceMaxSamples < 4 * kTransportMinReplicaSamples || o.toleranceMaxSamples > (1 << 24)))
-    throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [128, 16777216]");
+  if (o.tolerance > 0 && (o.toleranceMaxSamples < kTransportToleranceMinSamples || o.toleranceMaxSamples > (1 << 24)))
+    throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [" +
+                                          std::to_string(kTransportToleranceMinSamples) + ", 16777216]");
   if (o.albedoOverride)
     for (float a : *o.albedoOverride)
       if (!(a >= 0 && a <= 1)) throw UsageError("--albedo", "albedo must lie in [0, 1]");

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "prtbake/mesh.h"
@@ -19,6 +20,10 @@ struct RaySetup {
   size_t verticesWithoutNormal = 0;
 };
 
+// Points first … first + count − 1 of the 2-D Sobol' sequence (sobol.h) with a digital
+// shift drawn from the seed (the same for every block, so each power-of-two prefix stays
+// a net), cosine-mapped like sampleDirectionsLocal and Morton-ordered; N × 4 floats.
+std::vector<float> sobolDirectionsLocal(uint32_t first, int count, uint64_t seed);
 RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options);
 void checkTransportOptions(const TransportOptions& options);
 // Albedo per vertex (override applied), V × 4.

@@ -49,22 +49,26 @@ struct LutOptions {
   bool kullaConty = false;    // extra channels E and Eavg
   bool fastMath = false;      // -cl-fast-relaxed-math and native sqrt/rsqrt/divide
   LutDirections directions = LutDirections::Table;
-  // Adaptive sampling ("--tolerance E"; 0: off, `samples` is used). Each texel is
-  // estimated by kLutReplicas Hammersley sets with independent Cranley–Patterson shifts;
-  //   err(t) = kLutErrorFactor · max_channel s_c(t)/√R   (s_c: replica std. deviation),
-  // and texels with err ≥ tolerance get their samples doubled (fresh shifted sets, the
-  // earlier ones kept in the sample-weighted mean) until err < tolerance or the total
-  // per texel reaches toleranceMaxSamples. Channels: A, B and cloth when requested
-  // (E = A + B is then below 2·tolerance). Deterministic.
+  // Adaptive sampling ("--tolerance E"; 0: off, `samples` is used). Each texel takes
+  // successive blocks of ONE 2-D Sobol' sequence (every power-of-two prefix is a
+  // (0,m,2)-net, as good as the Hammersley set of the uniform path), doubling its count
+  // N per round and keeping every earlier sample. With d(N) = max_channel |X̂(N) − X̂(N/2)|
+  // the change of the prefix means (≈ 2 err(N) for an error falling like 1/N),
+  //   err(t) = kLutErrorFactor · max(d(N), d(N/2)/2),
+  // and a texel stops at the first N ≥ kLutToleranceMinSamples with err < tolerance, or
+  // when doubling would pass toleranceMaxSamples (counted at the cap). Channels: A, B
+  // and cloth when requested (E = A + B is then below 2·tolerance). Deterministic.
   double tolerance = 0;
   int toleranceMaxSamples = 65536;
 };
 
-constexpr int kLutReplicas = 4;
-constexpr double kLutErrorFactor = 2.0;    // measured: ≥ 95 % of texels end below E (tests/test_tolerance.cpp)
-// First round: 4 × 64 = 256 samples per texel. Fewer lets all four replicas miss the
-// rare zero-weight (N·L ≤ 0) samples of low-roughness texels and agree on a biased value.
-constexpr int kLutMinReplicaSamples = 64;
+// K of the adaptive estimate (see LutOptions::tolerance); measured: ≥ 95 % of texels end
+// below E (tests/test_tolerance.cpp, docs/accuracy.md).
+constexpr double kLutErrorFactor = 2.0;
+// Fewest samples at which a texel may stop (and the least --max-samples). Fewer lets the
+// prefixes of low-roughness texels all miss their rare zero-weight (N·L ≤ 0) samples
+// and agree on a biased value.
+constexpr int kLutToleranceMinSamples = 256;
 
 // Throws UsageError (subject "--size", "--samples", ...) for a size outside
 // [1, kLutMaxSize], samples outside [1, kLutMaxSamples], or both cloth and multiscatter.

@@ -69,22 +69,26 @@ struct TransportOptions {
   std::optional<size_t> vertexCount;
   TransportSampler sampler = TransportSampler::Hammersley;
   // Adaptive sampling ("--tolerance E", unshadowed and shadowed only; 0: off, `samples`
-  // is used). Each vertex is estimated by kTransportReplicas independently randomised
-  // sample sets (own shift and rotation); their spread gives the error estimate
-  //   err(p) = kTransportErrorFactor · max_i s_i(p)/√R   (s_i: replica std. deviation of T_i),
-  // and vertices whose err ≥ tolerance get their sample count doubled (fresh sets, the
-  // earlier ones kept in the sample-weighted mean) until err < tolerance or the total
-  // per vertex reaches toleranceMaxSamples. Deterministic for a given seed. In shadowed
-  // mode, vertices that cannot be occluded take the closed form (clampedCosineProjected)
-  // and use no samples.
+  // is used). Each vertex takes successive blocks of ONE 2-D Sobol' sequence (a digital
+  // shift from the seed; the per-vertex rotation about the normal of the uniform path),
+  // doubling its count N per round and keeping every earlier sample; every power-of-two
+  // prefix is a (0,m,2)-net, as good as the uniform path's Hammersley set. With
+  // d(N) = max_i |T̂_i(N) − T̂_i(N/2)| the change of the prefix means (≈ 2 err(N) for an
+  // error falling like 1/N),
+  //   err(p) = kTransportErrorFactor · max(d(N), d(N/2)/2),
+  // and a vertex stops at the first N ≥ kTransportToleranceMinSamples with err < tolerance
+  // or when doubling would pass toleranceMaxSamples (reported at the cap). Deterministic
+  // for a given seed. In shadowed mode, vertices that cannot be occluded take the closed
+  // form (clampedCosineProjected) and use no samples.
   double tolerance = 0;
   int toleranceMaxSamples = 65536;
 };
 
 // Adaptive sampling constants (see TransportOptions::tolerance).
-constexpr int kTransportReplicas = 4;
-constexpr double kTransportErrorFactor = 2.0;  // measured: ≥ 95 % of vertices end below E (tests/test_tolerance.cpp)
-constexpr int kTransportMinReplicaSamples = 32; // first round: 4 × 32 = 128 samples per vertex
+// K of the estimate; measured: ≥ 95 % of vertices end below E (tests/test_tolerance.cpp).
+constexpr double kTransportErrorFactor = 2.0;
+// Fewest samples at which a vertex may stop (and the least --max-samples).
+constexpr int kTransportToleranceMinSamples = 64;
 
 // Orders accepted by the transport product.
 constexpr int kMaxTransportOrder = 8;
