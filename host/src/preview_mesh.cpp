@@ -20,14 +20,6 @@ constexpr double kVerticalFovDeg = 35.0;  // of a landscape image (the narrower 
 constexpr double kFill = 0.9;             // the bounds' corners stay inside 90% of the frame
 constexpr size_t kLocalSize = 64;         // pixels per work-group (the traversal loops: PoCL runs it scalar)
 
-template <class T>
-cl::Buffer upload(Runtime& rt, const std::vector<T>& v) {
-  const size_t bytes = std::max<size_t>(v.size() * sizeof(T), 16);
-  cl::Buffer b(rt.context(), CL_MEM_READ_ONLY, bytes);
-  if (!v.empty()) rt.queue().enqueueWriteBuffer(b, CL_TRUE, 0, v.size() * sizeof(T), v.data());
-  return b;
-}
-
 struct Camera {
   double eye[3], forward[3], right[3], up[3];  // right and up scaled by tan(fov/2)
   double vfovDeg;
@@ -156,9 +148,9 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
                            " -DSH_BACKGROUND=" + (shBackground ? "1" : "0");
   cl::Kernel k = rt.kernel("preview.cl", "preview_mesh", opts);
   const int pixels = o.width * o.height;
-  cl::Buffer camDev = upload(rt, camBuf), nodesDev = upload(rt, nodes), trisDev = upload(rt, packed),
-             idxDev = upload(rt, idx), albedoDev = upload(rt, albedo), tDev = upload(rt, t.coeffs),
-             lightDev = upload(rt, shade), bgDev = upload(rt, bg);
+  cl::Buffer camDev = rt.upload(camBuf), nodesDev = rt.upload(nodes), trisDev = rt.upload(packed),
+             idxDev = rt.upload(idx), albedoDev = rt.upload(albedo), tDev = rt.upload(t.coeffs),
+             lightDev = rt.upload(shade), bgDev = rt.upload(bg);
   cl::Buffer rgbDev(rt.context(), CL_MEM_WRITE_ONLY, size_t(pixels) * 12);
   cl::Buffer hitDev(rt.context(), CL_MEM_WRITE_ONLY, size_t(pixels) * 4);
   int a = 0;

@@ -41,47 +41,39 @@ void setCommonArgs(cl::Kernel& k, int nv, int ns, const DeviceScene& s) {
   k.setArg(7, s.tMax);
 }
 
-template <class T>
-cl::Buffer upload(Runtime& rt, const std::vector<T>& v) {
-  const size_t bytes = std::max<size_t>(v.size() * sizeof(T), 16);
-  cl::Buffer b(rt.context(), CL_MEM_READ_ONLY, bytes);
-  if (!v.empty()) rt.queue().enqueueWriteBuffer(b, CL_TRUE, 0, v.size() * sizeof(T), v.data());
-  return b;
-}
-
 DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup,
                     bool needBvh, TransportResult& r) {
   DeviceScene s;
   s.tMax = setup.tMax;
-  s.origins = upload(rt, setup.origins);
-  s.frames = upload(rt, setup.frames);
-  s.dirs = upload(rt, setup.dirs);
+  s.origins = rt.upload(setup.origins);
+  s.frames = rt.upload(setup.frames);
+  s.dirs = rt.upload(setup.dirs);
   // Structure-of-arrays copy for the packet kernels, padded to a multiple of 16.
   const int ns = int(setup.dirs.size() / 4);
   s.paddedCount = (ns + 15) / 16 * 16;
   std::vector<float> soa(size_t(3) * s.paddedCount, 0.0f);
   for (int i = 0; i < ns; ++i)
     for (int c = 0; c < 3; ++c) soa[size_t(c) * s.paddedCount + i] = setup.dirs[4 * size_t(i) + c];
-  s.dirsSoA = upload(rt, soa);
+  s.dirsSoA = rt.upload(soa);
   if (needBvh) {
     const auto t0 = Clock::now();
     const Bvh bvh = buildBvh(mesh);
     r.bvhSeconds = since(t0);
     r.bvhNodes = bvh.nodes.size();
     r.degenerateTriangles = bvh.degenerateTriangles;
-    s.nodes = upload(rt, bvh.nodes);
-    s.tris = upload(rt, bvh.packed);
+    s.nodes = rt.upload(bvh.nodes);
+    s.tris = rt.upload(bvh.packed);
     s.unoccludable = detail::unoccludableFromBvh(mesh, bvh, setup);
     if (bvh.nodes.empty()) {
       // Every triangle has zero area: nothing can occlude. One leaf whose empty box
       // (min > max) no ray enters.
       const std::vector<Bvh::Node> one{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}};
-      s.nodes = upload(rt, one);
-      s.tris = upload(rt, std::vector<float>(12, 0.0f));
+      s.nodes = rt.upload(one);
+      s.tris = rt.upload(std::vector<float>(12, 0.0f));
     }
   } else {
-    s.nodes = upload(rt, std::vector<float>(8, 0.0f));
-    s.tris = upload(rt, std::vector<float>(12, 0.0f));
+    s.nodes = rt.upload(std::vector<float>(8, 0.0f));
+    s.tris = rt.upload(std::vector<float>(12, 0.0f));
   }
   return s;
 }
@@ -182,7 +174,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     std::vector<float> marked = setup.origins;
     for (int v = 0; v < nv; ++v)
       if (unoccludable(v)) marked[4 * size_t(v) + 3] = 1.0f;
-    scene.origins = upload(rt, marked);
+    scene.origins = rt.upload(marked);
     kd.setArg(2, scene.origins);
   }
   q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
@@ -219,8 +211,8 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
     for (size_t t = 0; t < mesh.triangleCount(); ++t)
       for (int k = 0; k < 3; ++k) idx[4 * t + k] = int32_t(mesh.indices[3 * t + k]);
-    cl::Buffer idxBuf = upload(rt, idx);
-    cl::Buffer albedoBuf = upload(rt, detail::vertexAlbedo(mesh, o));
+    cl::Buffer idxBuf = rt.upload(idx);
+    cl::Buffer albedoBuf = rt.upload(detail::vertexAlbedo(mesh, o));
     cl::Buffer prevBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
     cl::Buffer nextBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
     q.enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());

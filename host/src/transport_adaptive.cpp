@@ -30,13 +30,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-template <class T>
-cl::Buffer upload(Runtime& rt, const std::vector<T>& v) {
-  const size_t bytes = std::max<size_t>(v.size() * sizeof(T), 16);
-  cl::Buffer b(rt.context(), CL_MEM_READ_ONLY, bytes);
-  if (!v.empty()) rt.queue().enqueueWriteBuffer(b, CL_TRUE, 0, v.size() * sizeof(T), v.data());
-  return b;
-}
 }  // namespace
 
 TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
@@ -57,7 +50,7 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
   base.samples = 1;
   const RaySetup setup0 = makeRaySetup(mesh, base);
   r.verticesWithoutNormal = setup0.verticesWithoutNormal;
-  cl::Buffer nodes = upload(rt, std::vector<float>(8, 0.0f)), tris = upload(rt, std::vector<float>(12, 0.0f));
+  cl::Buffer nodes = rt.upload(std::vector<float>(8, 0.0f)), tris = rt.upload(std::vector<float>(12, 0.0f));
   std::vector<uint8_t> unocc(nv, 1);
   if (visibility) {
     const auto t0 = Clock::now();
@@ -66,8 +59,8 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
     r.bvhNodes = bvh.nodes.size();
     r.degenerateTriangles = bvh.degenerateTriangles;
     if (!bvh.nodes.empty()) {
-      nodes = upload(rt, bvh.nodes);
-      tris = upload(rt, bvh.packed);
+      nodes = rt.upload(bvh.nodes);
+      tris = rt.upload(bvh.packed);
       unocc = unoccludableFromBvh(mesh, bvh, setup0);
     }
     for (uint8_t u : unocc) r.verticesUnoccludable += u;

@@ -12,13 +12,6 @@ namespace detail {
 namespace {
 constexpr size_t kLocalSize = 16;  // as in transport.cpp
 
-template <class T>
-cl::Buffer upload(Runtime& rt, const std::vector<T>& v) {
-  const size_t bytes = std::max<size_t>(v.size() * sizeof(T), 16);
-  cl::Buffer b(rt.context(), CL_MEM_READ_ONLY, bytes);
-  if (!v.empty()) rt.queue().enqueueWriteBuffer(b, CL_TRUE, 0, v.size() * sizeof(T), v.data());
-  return b;
-}
 }  // namespace
 
 // A vertex p with unit normal n and ray origin o = p + h' (h = n·(o − p) > 0 its height
@@ -100,7 +93,7 @@ void DirectRunner::run(const RaySetup& setup, const std::vector<uint32_t>& verti
   const std::string opts = "-DSH_ORDER=" + std::to_string(o_.order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
                            " -DCHANNELS=1 -DBVH_PACKET=" + std::to_string(o_.packetWidth);
   cl::Kernel k = rt_.kernel("transport.cl", packet ? "transport_direct_packet" : "transport_direct", opts);
-  cl::Buffer ob = upload(rt_, origins), fb = upload(rt_, frames), db = upload(rt_, dirs);
+  cl::Buffer ob = rt_.upload(origins), fb = rt_.upload(frames), db = rt_.upload(dirs);
   cl::Buffer cb(rt_.context(), CL_MEM_READ_WRITE, coeffs.size() * 4), vb(rt_.context(), CL_MEM_READ_WRITE, visible.size() * 4);
   k.setArg(0, nv);
   k.setArg(1, ns);

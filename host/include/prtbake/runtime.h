@@ -72,6 +72,16 @@ class Runtime {
   // Largest work-group size the device accepts for a 1-D launch.
   size_t maxWorkGroupSize() const;
 
+  // A read-only device buffer holding `data` (written before returning). Never
+  // zero-sized: an empty vector gives a 16-byte buffer, so it can still be bound.
+  template <class T>
+  cl::Buffer upload(const std::vector<T>& data) {
+    const size_t bytes = data.size() * sizeof(T);
+    cl::Buffer b(context_, CL_MEM_READ_ONLY, bytes > 16 ? bytes : 16);
+    if (bytes) queue_.enqueueWriteBuffer(b, CL_TRUE, 0, bytes, data.data());
+    return b;
+  }
+
  private:
   DeviceInfo info_;
   cl::Device device_;
