@@ -25,6 +25,11 @@ const double kPi = 3.14159265358979323846;
 const double kY0 = 0.28209479177387814;
 // Acceptance (issue 6): at least 95 % of the vertices/texels below the tolerance.
 constexpr double kMinFractionBelow = 0.95;
+// Where criterion (2) does not hold yet (cavity, LUT), a regression bound instead: the
+// adaptive total may not exceed this multiple of the uniform total at equal maximum
+// error. Measured 1.8x (cavity) and 2.0x (LUT, 32²); the runs are deterministic, so a
+// change of the estimator or the sequence that costs 25 % more samples fails here.
+constexpr double kMaxOverUniform = 2.5;
 
 // Per-item error: the largest |x − ref| over the item's values.
 struct Errors {
@@ -136,6 +141,7 @@ TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance
   // varies too much from vertex to vertex on this discontinuous (visibility) integrand,
   // see docs/accuracy.md. Reported, not failed, until the estimator is fixed.
   CHECK_NOFAIL(double(r.totalSamples) < total);
+  CHECK(double(r.totalSamples) < kMaxOverUniform * total);
 }
 
 TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
@@ -167,6 +173,7 @@ TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
   // texels stop with an estimate several times below their error, and they set the
   // maximum (docs/accuracy.md). Reported, not failed, until the estimator is fixed.
   CHECK_NOFAIL(double(lut.totalSamples) < total);
+  CHECK(double(lut.totalSamples) < kMaxOverUniform * total);
 }
 
 TEST_CASE("Tolerance: command line and sidecars", "[tolerance][cli]") {
