@@ -122,7 +122,7 @@ struct LutResult {
   bool reference = false;       // computed by computeLutReference
   // Adaptive sampling (LutOptions::tolerance > 0): samples per texel (row major),
   // histogram[k] = texels that used 2^k samples, texels that hit the cap, and the
-  // replica-spread error estimate (max over channels) per texel, max and mean.
+  // prefix-difference error estimate (max over channels) per texel, max and mean.
   std::vector<int> samplesPerTexel;
   std::vector<size_t> samplesHistogram;
   size_t texelsAtCap = 0;

@@ -115,7 +115,7 @@ struct TransportResult {
   size_t verticesUnoccludable = 0;
   // Adaptive sampling (TransportOptions::tolerance > 0): samples used per vertex,
   // histogram[k] = vertices that used 2^k samples, vertices that hit the cap, and the
-  // replica-spread error estimate (max over coefficients) per vertex, max and mean.
+  // prefix-difference error estimate (max over coefficients) per vertex, max and mean.
   std::vector<int> samplesPerVertex;
   std::vector<size_t> samplesHistogram;
   size_t verticesAtCap = 0;
