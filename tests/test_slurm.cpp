@@ -111,7 +111,7 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
     auto jobs = [&](const std::string& out) {
       return std::vector<json>{{{"id", "scene"}, {"type", "transport"}, {"input", "scene.obj"}, {"split", true},
                                 {"outputs", {{"npy", out + "/scene.npy"}, {"games202", out + "/scene.txt"}}},
-                                {"samples", 32768}}};
+                                {"samples", 131072}}};
     };
     writeJobFile(dir + "/ref.json", jobs("ref"));
     writeJobFile(dir + "/jobs.json", jobs("out"));
@@ -134,8 +134,9 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
           const CliResult rq = runShell("scontrol requeue " + array + "_" + task);
           INFO(rq.output);
           REQUIRE(rq.exitCode == 0);
-          victim = task;
-          CHECK_FALSE(fileExists(manifest));  // it really was killed before its commit
+          // The task may have committed between the check and the requeue (each takes
+          // ~1 s of compute here): then it simply runs again and another task is caught.
+          if (!fileExists(manifest)) victim = task;  // killed before its commit
           // Slurm makes a requeued job eligible only ~2 minutes later; as an operator
           // would, start it now (once it is pending again).
           const std::string id = array + "_" + task;
