@@ -3,8 +3,11 @@
 #include <catch2/catch.hpp>
 
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <vector>
 
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 #include "prtbake/runtime.h"
@@ -64,6 +67,57 @@ TEST_CASE("Programs are cached per (file, options)", "[runtime]") {
   REQUIRE(rt.buildSeconds() == t);
   cl::Program c = rt.program("sh_eval.cl", "-DX=2");
   REQUIRE(c() != a());
+}
+
+namespace {
+// Runs add_index (x[i] += i) on a fresh Runtime over {0.5, 0.5, 0.5, 0.5}.
+std::vector<float> runAddIndex() {
+  Runtime rt("cpu");
+  std::vector<float> x(4, 0.5f);
+  cl::Buffer b(rt.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, x.size() * 4, x.data());
+  cl::Kernel k = rt.kernel("cached.cl", "add_index");
+  k.setArg(0, b);
+  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(x.size()));
+  rt.queue().enqueueReadBuffer(b, CL_TRUE, 0, x.size() * 4, x.data());
+  return x;
+}
+
+std::vector<std::string> cacheEntries(const std::string& dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (e.path().extension() == ".bin") out.push_back(e.path().string());
+  return out;
+}
+}  // namespace
+
+TEST_CASE("Program binaries are cached across runtimes, and a damaged entry is rebuilt", "[runtime]") {
+  const std::string dir = test::tempDir("programcache");
+  std::ofstream(dir + "/cached.cl") << "__kernel void add_index(__global float* x) { x[get_global_id(0)] += (float)get_global_id(0); }\n";
+  const std::string cache = dir + "/cache";
+  ::setenv("PRTBAKE_KERNEL_DIR", dir.c_str(), 1);
+  ::setenv("PRTBAKE_CACHE_DIR", cache.c_str(), 1);
+  const std::vector<float> expect{0.5f, 1.5f, 2.5f, 3.5f};
+  CHECK(runAddIndex() == expect);  // built from source, binary stored
+  const auto entries = cacheEntries(cache);
+  REQUIRE(entries.size() == 1);
+  CHECK(runAddIndex() == expect);  // from the stored binary
+  CHECK(cacheEntries(cache).size() == 1);
+  std::ofstream(entries[0], std::ios::binary | std::ios::trunc) << "not a device binary";
+  CHECK(runAddIndex() == expect);  // the damaged entry is ignored ...
+  CHECK(readFile(entries[0]) != "not a device binary");  // ... and replaced
+  // A changed source is a different entry.
+  std::ofstream(dir + "/cached.cl") << "__kernel void add_index(__global float* x) { x[get_global_id(0)] += 2.0f * (float)get_global_id(0); }\n";
+  CHECK(runAddIndex() == std::vector<float>{0.5f, 2.5f, 4.5f, 6.5f});
+  CHECK(cacheEntries(cache).size() == 2);
+  // "off" disables the cache: a third source builds, and nothing is stored.
+  ::setenv("PRTBAKE_CACHE_DIR", "off", 1);
+  std::ofstream(dir + "/cached.cl") << "__kernel void add_index(__global float* x) { x[get_global_id(0)] += 3.0f * (float)get_global_id(0); }\n";
+  CHECK(runAddIndex() == std::vector<float>{0.5f, 3.5f, 6.5f, 9.5f});
+  CHECK(cacheEntries(cache).size() == 2);
+  CHECK_FALSE(std::filesystem::exists("off/"));  // not taken as a directory name
+  ::unsetenv("PRTBAKE_CACHE_DIR");
+  ::unsetenv("PRTBAKE_KERNEL_DIR");
 }
 
 TEST_CASE("SHA-256 matches the FIPS 180-4 examples", "[hash]") {
