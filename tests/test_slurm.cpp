@@ -94,6 +94,17 @@ void requireSameBytes(const std::string& a, const std::string& b) {
   CHECK(x == y);
 }
 
+// Writes the job file twice, with outputs under ref/ and out/, runs the ref one in one
+// process (the result every array must reproduce) and submits the other as 8 tasks.
+template <class Jobs>
+std::pair<std::string, std::string> runReferenceAndSubmit(const std::string& dir, Jobs&& jobs) {
+  writeJobFile(dir + "/ref.json", jobs("ref"));
+  writeJobFile(dir + "/jobs.json", jobs("out"));
+  const CliResult ref = runCli("run " + q(dir + "/ref.json") + " --quiet");
+  INFO(ref.output);
+  REQUIRE(ref.exitCode == 0);
+  return submit(dir + "/jobs.json", 8);
+}
 }  // namespace
 
 TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeued task", "[slurm]") {
@@ -113,13 +124,7 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
                                 {"outputs", {{"npy", out + "/scene.npy"}, {"games202", out + "/scene.txt"}}},
                                 {"samples", 131072}}};
     };
-    writeJobFile(dir + "/ref.json", jobs("ref"));
-    writeJobFile(dir + "/jobs.json", jobs("out"));
-    const CliResult ref = runCli("run " + q(dir + "/ref.json") + " --quiet");
-    INFO(ref.output);
-    REQUIRE(ref.exitCode == 0);
-
-    const auto [array, merge] = submit(dir + "/jobs.json", 8);
+    const auto [array, merge] = runReferenceAndSubmit(dir, jobs);
     // Catch a task while it computes (its partial result not yet committed) and requeue it.
     std::string victim;
     const auto t0 = Clock::now();
@@ -174,12 +179,7 @@ TEST_CASE("slurm: 8-task arrays and merge equal one process also after a requeue
       }
       return v;
     };
-    writeJobFile(dir + "/ref.json", jobs("ref"));
-    writeJobFile(dir + "/jobs.json", jobs("out"));
-    const CliResult ref = runCli("run " + q(dir + "/ref.json") + " --quiet");
-    INFO(ref.output);
-    REQUIRE(ref.exitCode == 0);
-    const auto [array, merge] = submit(dir + "/jobs.json", 8);
+    const auto [array, merge] = runReferenceAndSubmit(dir, jobs);
     const std::string state = waitForMerge(array, merge);
     const std::string mergeLog = readText(dir + "/.prtbake-slurm-jobs/logs/merge.out");
     INFO("merge job " << merge << ": " << state << "\n" << mergeLog << cluster.logs());

@@ -48,13 +48,7 @@ DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, co
   s.origins = rt.upload(setup.origins);
   s.frames = rt.upload(setup.frames);
   s.dirs = rt.upload(setup.dirs);
-  // Structure-of-arrays copy for the packet kernels, padded to a multiple of 16.
-  const int ns = int(setup.dirs.size() / 4);
-  s.paddedCount = (ns + 15) / 16 * 16;
-  std::vector<float> soa(size_t(3) * s.paddedCount, 0.0f);
-  for (int i = 0; i < ns; ++i)
-    for (int c = 0; c < 3; ++c) soa[size_t(c) * s.paddedCount + i] = setup.dirs[4 * size_t(i) + c];
-  s.dirsSoA = rt.upload(soa);
+  s.dirsSoA = rt.upload(detail::packetDirections(setup.dirs, s.paddedCount));
   if (needBvh) {
     const auto t0 = Clock::now();
     const Bvh bvh = buildBvh(mesh);

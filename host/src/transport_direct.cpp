@@ -81,15 +81,8 @@ void DirectRunner::run(const RaySetup& setup, const std::vector<uint32_t>& verti
     std::copy_n(&setup.frames[12 * size_t(vertices[i])], 12, &frames[12 * size_t(i)]);
   }
   const bool packet = o_.packetWidth > 0;
-  const int padded = (ns + 15) / 16 * 16;
-  std::vector<float> dirs;
-  if (packet) {
-    dirs.assign(size_t(3) * padded, 0.0f);
-    for (int i = 0; i < ns; ++i)
-      for (int c = 0; c < 3; ++c) dirs[size_t(c) * padded + i] = setup.dirs[4 * size_t(i) + c];
-  } else {
-    dirs = setup.dirs;
-  }
+  int padded = 0;
+  const std::vector<float> dirs = packet ? packetDirections(setup.dirs, padded) : setup.dirs;
   const std::string opts = "-DSH_ORDER=" + std::to_string(o_.order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
                            " -DCHANNELS=1 -DBVH_PACKET=" + std::to_string(o_.packetWidth);
   cl::Kernel k = rt_.kernel("transport.cl", packet ? "transport_direct_packet" : "transport_direct", opts);

@@ -141,6 +141,15 @@ std::vector<float> sobolDirectionsLocal(uint32_t first, int count, uint64_t seed
   return dirs;
 }
 
+std::vector<float> packetDirections(const std::vector<float>& dirs, int& paddedCount) {
+  const int ns = int(dirs.size() / 4);
+  paddedCount = (ns + 15) / 16 * 16;
+  std::vector<float> soa(size_t(3) * paddedCount, 0.0f);
+  for (int i = 0; i < ns; ++i)
+    for (int c = 0; c < 3; ++c) soa[size_t(c) * paddedCount + i] = dirs[4 * size_t(i) + c];
+  return soa;
+}
+
 void checkTransportOptions(const TransportOptions& o) {
   if (o.order < 1 || o.order > kMaxTransportOrder)
     throw UsageError("--order", std::to_string(o.order) + " is out of range [1, " + std::to_string(kMaxTransportOrder) + "]");

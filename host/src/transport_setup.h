@@ -25,6 +25,9 @@ struct RaySetup {
 // a net), cosine-mapped like sampleDirectionsLocal and Morton-ordered; N × 4 floats.
 std::vector<float> sobolDirectionsLocal(uint32_t first, int count, uint64_t seed);
 RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options);
+// The directions (N × 4) as the packet kernels read them: x, y, z as three rows of
+// paddedCount floats, N rounded up to a multiple of 16 (padding lanes are zero).
+std::vector<float> packetDirections(const std::vector<float>& dirs, int& paddedCount);
 void checkTransportOptions(const TransportOptions& options);
 // Albedo per vertex (override applied), V × 4.
 std::vector<float> vertexAlbedo(const Mesh& mesh, const TransportOptions& options);
