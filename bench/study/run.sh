@@ -3,7 +3,8 @@
 # bench/results/study/ (CSV, JSON), docs/images/accuracy_*.png and docs/accuracy.md.
 #   bash bench/study/run.sh          full study (~2.5 min of sweeps on the 2-core machine, plus the build)
 #   STUDY_QUICK=1 bash bench/study/run.sh   smaller sweeps (a few minutes)
-# Needs python3 with matplotlib for the plots (apt-get install python3-matplotlib).
+# Needs python3 with matplotlib for the plots (apt-get install python3-matplotlib) and numpy for
+# the offline replay of the LUT stopping rules (python3-numpy).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BUILD=${BUILD:-$ROOT/build}
@@ -69,6 +70,16 @@ PY
   fi
   rm -rf "$tmp"
 done
+
+# Offline replay of the LUT's --tolerance stopping rules (NumPy; skipped without it).
+REPLAY=no
+for p in python3 /usr/bin/python3; do
+  if command -v "$p" >/dev/null && "$p" -c "import numpy" 2>/dev/null; then
+    "$p" "$ROOT/bench/study/replay_lut.py" "$OUT/replay_lut.md" && REPLAY=yes
+    break
+  fi
+done
+[ "$REPLAY" = yes ] || echo "study: no python3 with numpy (apt-get install python3-numpy): replay_lut skipped" >&2
 
 END=$(date +%s)
 echo "{\"runtime_s\": $((END - START)), \"quick\": \"${QUICK:-no}\"}" > "$OUT/run.json"
