@@ -92,30 +92,24 @@ def unit(x):
     return x.astype(np.float64) * 2.0 ** -32
 
 
-def table(u1, u2, chunk=64):
-    """(A, B) means over all points, for every texel; u1, u2 shared (1-D) or per texel."""
-    out = np.zeros((S * S, 2))
+def prefix_means(u1, u2, ns, chunk=64):
+    """{N: (A, B) mean of the first N points} for every texel and every N in ns; the
+    points u1, u2 are shared (1-D) or per texel (2-D)."""
+    out = {n: np.zeros((S * S, 2)) for n in ns}
     for c0 in range(0, S * S, chunk):
         t = slice(c0, c0 + chunk)
         p1 = u1[None, :] if u1.ndim == 1 else u1[t]
         p2 = u2[None, :] if u2.ndim == 1 else u2[t]
-        wa, wb = weights(p1, p2, MU[t], ALPHA[t])
-        out[t] = np.stack([wa.mean(1), wb.mean(1)], 1)
-    return out
-
-
-def prefixes(u1, u2, chunk=64):
-    """{N: (A, B) mean of the first N points} for every texel."""
-    out = {n: np.zeros((S * S, 2)) for n in NS}
-    for c0 in range(0, S * S, chunk):
-        t = slice(c0, c0 + chunk)
-        p1 = u1[None, :] if u1.ndim == 1 else u1[t]
-        p2 = u2[None, :] if u2.ndim == 1 else u2[t]
-        wa, wb = weights(p1, p2, MU[t], ALPHA[t])
+        wa, wb = weights(p1[:, :max(ns)], p2[:, :max(ns)], MU[t], ALPHA[t])
         ca, cb = np.cumsum(wa, 1), np.cumsum(wb, 1)
-        for n in NS:
+        for n in ns:
             out[n][t] = np.stack([ca[:, n - 1] / n, cb[:, n - 1] / n], 1)
     return out
+
+
+def table(u1, u2, chunk=64):
+    """(A, B) means over all points, for every texel."""
+    return prefix_means(u1, u2, [u1.shape[-1]], chunk)[u1.shape[-1]]
 
 
 def hammersley(n):
@@ -149,15 +143,13 @@ def main():
     texel = np.arange(S * S, dtype=np.uint64)[:, None]
     seq = {
         "hammersley": {n: table(*hammersley(n)) for n in NS},
-        "sobol": prefixes(unit(d0 ^ 0xAAAAAAAA), unit(d1)),
-        "owen": prefixes(unit(owen(d0[None, :], mix(4 * texel))), unit(owen(d1[None, :], mix(4 * texel + 1)))),
-        "owen2": prefixes(unit(owen(d0[None, :], mix(4 * texel + 2))), unit(owen(d1[None, :], mix(4 * texel + 3)))),
+        "sobol": prefix_means(unit(d0 ^ 0xAAAAAAAA), unit(d1), NS),
+        "owen": prefix_means(unit(owen(d0[None, :], mix(4 * texel))), unit(owen(d1[None, :], mix(4 * texel + 1))), NS),
+        "owen2": prefix_means(unit(owen(d0[None, :], mix(4 * texel + 2))), unit(owen(d1[None, :], mix(4 * texel + 3))), NS),
     }
     fu1, fu2 = faure_centred(3 ** 9)
     faure_ns = [3 ** j for j in range(4, 10)]
-    faure = {}
-    for n in faure_ns:
-        faure[n] = table(fu1[:n], fu2[:n])
+    faure = prefix_means(fu1, fu2, faure_ns)
 
     um = {n: err(seq["hammersley"][n]).max() for n in NS}
 

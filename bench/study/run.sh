@@ -71,22 +71,25 @@ PY
   rm -rf "$tmp"
 done
 
+# The first python3 that imports module $1 (empty when none does).
+python_with() {
+  for p in python3 /usr/bin/python3; do
+    if command -v "$p" >/dev/null && "$p" -c "import $1" 2>/dev/null; then echo "$p"; return; fi
+  done
+}
+
 # Offline replay of the LUT's --tolerance stopping rules (NumPy; skipped without it).
-REPLAY=no
-for p in python3 /usr/bin/python3; do
-  if command -v "$p" >/dev/null && "$p" -c "import numpy" 2>/dev/null; then
-    "$p" "$ROOT/bench/study/replay_lut.py" "$OUT/replay_lut.md" && REPLAY=yes
-    break
-  fi
-done
-[ "$REPLAY" = yes ] || echo "study: no python3 with numpy (apt-get install python3-numpy): replay_lut skipped" >&2
+NPY=$(python_with numpy)
+if [ -n "$NPY" ]; then
+  "$NPY" "$ROOT/bench/study/replay_lut.py" "$OUT/replay_lut.md"
+else
+  echo "study: no python3 with numpy (apt-get install python3-numpy): replay_lut skipped" >&2
+fi
 
 END=$(date +%s)
 echo "{\"runtime_s\": $((END - START)), \"quick\": \"${QUICK:-no}\"}" > "$OUT/run.json"
-# The report needs matplotlib: take the first python3 that has it.
-PY=python3
-for p in python3 /usr/bin/python3; do
-  if command -v "$p" >/dev/null && "$p" -c "import matplotlib" 2>/dev/null; then PY=$p; break; fi
-done
+# The report needs matplotlib for its plots.
+PY=$(python_with matplotlib)
+PY=${PY:-python3}
 "$PY" "$ROOT/bench/study/make_report.py" "$ROOT"
 echo "study: $((END - START)) s; results in $OUT, report in docs/accuracy.md"
