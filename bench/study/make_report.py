@@ -337,11 +337,41 @@ failing = ["%s `%s` at E = %s (%.3f)" % (a["product"], a["case"], fmt(a["tol"]),
 w("- `--tolerance` meets the 95 %% target (fraction of vertices/texels below E) in %d of %d runs%s." % (
     len(adaptive) - len(failing), len(adaptive), "; it misses it for " + ", ".join(failing) if failing else ""))
 w("")
-w("The adaptive mode loses at equal maximum error wherever the counts above say so. The room is there: "
-  "an oracle that gives each item the smallest power-of-two count at which its own uniform-Hammersley "
-  "error is below a target needs 3.0-3.2x fewer samples than uniform sampling for the same maximum error "
-  "on the bumpy sphere (1014 vertices, targets 1e-2 to 1e-3) and 2.0-7.0x fewer on a 32² GGX table "
-  "(targets 1e-2 to 3e-4). Two things eat it. First, a progressive sequence is a worse integrator than the "
+
+
+def oracle_rows(name):
+    """(E, luck, scale) rows of the oracle table in bench/results/study/NAME, or []."""
+    path = os.path.join(RES, name)
+    out = []
+    for line in open(path) if os.path.exists(path) else []:
+        p = [x.strip() for x in line.strip().strip("|").split("|")]
+        if len(p) == 4 and p[0] == "":
+            try:
+                out.append(tuple(float(x) for x in p[1:]))
+            except ValueError:
+                pass
+    return out
+
+
+def span(rows, col):
+    v = [r[col] for r in rows]
+    return "%.1f-%.1fx" % (min(v), max(v)) if v else "(not measured: no numpy)"
+
+
+bumpy_or, lut_or = oracle_rows("replay_transport.md"), oracle_rows("replay_lut.md")
+w("The adaptive mode loses at equal maximum error wherever the counts above say so. How much room there is, two "
+  "oracles say (bench/study/oracle.py; tables under \"Oracle bounds\" below), each judged against uniform "
+  "sampling at its own maximum error. The *luck* oracle gives each item the first count at which its actual "
+  "error is below E: it needs %s fewer samples on the bumpy sphere and %s fewer on a 32² GGX table. Most of "
+  "that is knowing where a count happens to land near the answer, which no estimate made from the samples can "
+  "know. The *scale* oracle knows only each item's error scale (from its true errors at every count, the "
+  "fluctuation about it averaged out) and picks its constants after the fact: %s on the bumpy sphere and %s "
+  "on the table, before any estimate costs a sample. That is the ceiling for a rule that estimates an error "
+  "scale, and on the shadowed mesh it is low: there the errors of vertices differ mostly by chance, not by "
+  "difficulty. Two things eat what is left, the integrator and the estimate."
+  % (span(bumpy_or, 1), span(lut_or, 1), span(bumpy_or, 2), span(lut_or, 2)))
+w("")
+w("First, a progressive sequence is a worse integrator than the "
   "uniform path's centred Hammersley set at the same count: the Sobol' prefix of N points has a mean error "
   "1.2x (bumpy sphere) to 2x (32² GGX, N = 1024: 2.9e-4 against 1.4e-4) that of N Hammersley points, whose "
   "first coordinate sits at stratum midpoints; an Owen-scrambled Sobol' sequence (hash-based nested "
@@ -360,22 +390,35 @@ w("The adaptive mode loses at equal maximum error wherever the counts above say 
   "estimate for most items (the fraction column); uniform Hammersley/table sampling remains the cheaper "
   "way to a given maximum error. Vertices that cannot be occluded cost no rays in any mode.")
 w("")
-replay = os.path.join(RES, "replay_lut.md")
-if os.path.exists(replay):
-    w("### Replay of stopping rules on a 32² GGX table")
+def section(result, title, intro):
+    """A heading, an introduction and the markdown file RES/result, when the study wrote it."""
+    path = os.path.join(RES, result)
+    if not os.path.exists(path):
+        return
+    w("### " + title)
     w("")
-    w("`bench/study/replay_lut.py` (NumPy port of the GGX estimator) integrates every texel of a 32² table to "
-      "16384 points with several point sequences and replays each stopping rule on the saved prefix means. "
-      "Independent Owen scrambles per texel make neighbouring texels' errors independent, so an estimate "
-      "pooled over the 3×3 neighbourhood becomes reliable (at K = 1, 98.8-99.2 % of texels below E from "
-      "E = 3e-3 down), which no rule on the shared sequence achieves at equal cost. It still needs 1.3-2.1x "
-      "more samples than the centred Hammersley table at equal maximum error, because the scrambled points "
-      "integrate 1.5-2x worse and the stopping rule keeps a margin. Two scrambles per texel, whose difference "
-      "is the textbook variance estimate, lose by more (one degree of freedom per texel): the mean of two "
-      "half-length scrambles integrates worse still.")
+    w(intro)
     w("")
-    md.extend(open(replay).read().rstrip("\n").split("\n"))
+    md.extend(open(path).read().rstrip("\n").split("\n"))
     w("")
+
+
+section("replay_lut.md", "Replay of stopping rules on a 32² GGX table",
+        "`bench/study/replay_lut.py` (NumPy port of the GGX estimator) integrates every texel of a 32² table to "
+        "16384 points with several point sequences and replays each stopping rule on the saved prefix means. "
+        "Independent Owen scrambles per texel make neighbouring texels' errors independent, so an estimate "
+        "pooled over the 3×3 neighbourhood becomes reliable (at K = 1, 98.8-99.2 % of texels below E from "
+        "E = 3e-3 down), which no rule on the shared sequence achieves at equal cost. It still needs 1.3-2.1x "
+        "more samples than the centred Hammersley table at equal maximum error, because the scrambled points "
+        "integrate 1.5-2x worse and the stopping rule keeps a margin. Two scrambles per texel, whose difference "
+        "is the textbook variance estimate, lose by more (one degree of freedom per texel): the mean of two "
+        "half-length scrambles integrates worse still.")
+section("replay_transport.md", "Oracle bounds on the bumpy sphere",
+        "`bench/study/replay_transport.py` reads the per-vertex errors that the study writes for the default "
+        "sampler at 17 counts (bench/results/study/transport_pervertex.txt) and computes the two oracles of "
+        "`bench/study/oracle.py`. Each cell: uniform total at the oracle's maximum error ÷ the oracle's total. "
+        "The reference's own bound (%s) is below every E in the table." % fmt(next(
+            (r["ref_bound"] for r in rows if r["curve"] == "bumpy-shadowed-reference"), float("nan"))))
 w("Regenerate with `bash bench/study/run.sh`.")
 w("")
 open(os.path.join(ROOT, "docs", "accuracy.md"), "w").write("\n".join(md))

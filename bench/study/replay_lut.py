@@ -13,11 +13,14 @@ centred Hammersley points; its bound is its largest change from 2^17 points (1.5
 agrees with computeLutReference (Gauss–Legendre, double) to 1.5e-5.
 
 Needs python3-numpy. Usage: replay_lut.py OUT.md   (about a minute on 2 cores)
+Also writes the oracle bounds of oracle.py for the centred Hammersley table.
 """
 import math
 import sys
 
 import numpy as np
+
+from oracle import table as oracle_table
 
 S = 32                                   # table size (texels per axis)
 NS = [2 ** k for k in range(4, 15)]      # prefix lengths 16 .. 16384
@@ -225,6 +228,13 @@ def main():
         oracle.append("E = %g: %.2fx" % (tol, uniform_total(final.max()) / stop.sum()))
     w("An oracle that stops each texel's Sobol' prefix at the first N whose true error is below E needs "
       "fewer samples than uniform sampling at the same maximum error by " + ", ".join(oracle) + ".")
+    w("")
+    grid = [int(round(64 * 2 ** (k / 2))) for k in range(17)]
+    gerr = np.array([err(seq["hammersley"][n] if n in seq["hammersley"] else table(*hammersley(n))) for n in grid])
+    w("Oracle bounds (bench/study/oracle.py) from the centred Hammersley table at %d counts from %d to %d:"
+      % (len(grid), grid[0], grid[-1]))
+    w("")
+    md.extend(oracle_table(grid, gerr, (1e-2, 3e-3, 1e-3, 3e-4, 1e-4), "table"))
     w("")
     w("Stopping rules replayed (estimate K·max(d(N), d(N/2)/2), stop at the first N ≥ 256 below E; pooled: "
       "the RMS or maximum of that quantity over the texel's 3×3 neighbourhood). Each cell: fraction of texels "

@@ -4,7 +4,7 @@
 #   bash bench/study/run.sh          full study (~2.5 min of sweeps on the 2-core machine, plus the build)
 #   STUDY_QUICK=1 bash bench/study/run.sh   smaller sweeps (a few minutes)
 # Needs python3 with matplotlib for the plots (apt-get install python3-matplotlib) and numpy for
-# the offline replay of the LUT stopping rules (python3-numpy).
+# the offline replays of the stopping rules (python3-numpy).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BUILD=${BUILD:-$ROOT/build}
@@ -78,12 +78,13 @@ python_with() {
   done
 }
 
-# Offline replay of the LUT's --tolerance stopping rules (NumPy; skipped without it).
+# Offline replays of the --tolerance stopping rules and their oracle bounds (NumPy; skipped without it).
 NPY=$(python_with numpy)
 if [ -n "$NPY" ]; then
   "$NPY" "$ROOT/bench/study/replay_lut.py" "$OUT/replay_lut.md"
+  "$NPY" "$ROOT/bench/study/replay_transport.py" "$OUT/transport_pervertex.txt" "$OUT/replay_transport.md"
 else
-  echo "study: no python3 with numpy (apt-get install python3-numpy): replay_lut skipped" >&2
+  echo "study: no python3 with numpy (apt-get install python3-numpy): replays skipped" >&2
 fi
 
 END=$(date +%s)
