@@ -25,11 +25,14 @@ const double kPi = 3.14159265358979323846;
 const double kY0 = 0.28209479177387814;
 // Acceptance (issue 6): at least 95 % of the vertices/texels below the tolerance.
 constexpr double kMinFractionBelow = 0.95;
-// Where criterion (2) does not hold yet (cavity, LUT), a regression bound instead: the
-// adaptive total may not exceed this multiple of the uniform total at equal maximum
-// error. Measured 1.8x (cavity) and 2.0x (LUT, 32²); the runs are deterministic, so a
-// change of the estimator or the sequence that costs 25 % more samples fails here.
-constexpr double kMaxOverUniform = 2.5;
+// Where criterion (2) does not hold (cavity, LUT), a regression bound instead: the adaptive
+// total may not exceed the measured multiple of the uniform total at equal maximum error
+// by more than 25 %. Measured 1.80x (cavity) and 2.35x (LUT, 32², 3×3-pooled estimate);
+// the runs are deterministic, so a change of the estimator or the sequence that costs
+// 25 % more samples fails here.
+constexpr double kRegressionMargin = 1.25;
+constexpr double kCavityOverUniform = 1.80 * kRegressionMargin;
+constexpr double kLutOverUniform = 2.35 * kRegressionMargin;
 
 // Per-item error: the largest |x − ref| over the item's values.
 struct Errors {
@@ -141,7 +144,7 @@ TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance
   // varies too much from vertex to vertex on this discontinuous (visibility) integrand,
   // see docs/accuracy.md. Reported, not failed, until the estimator is fixed.
   CHECK_NOFAIL(double(r.totalSamples) < total);
-  CHECK(double(r.totalSamples) < kMaxOverUniform * total);
+  CHECK(double(r.totalSamples) < kCavityOverUniform * total);
 }
 
 TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
@@ -168,12 +171,13 @@ TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
                 << ", uniform " << uniform << "/texel = " << total << ", at cap " << lut.texelsAtCap);
   CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
   CHECK(uniform > 0);
-  // Criterion (2) is not met here yet (measured: adaptive 2.1e6 samples, max error 1.7e-3,
-  // against 1.0e6 for the uniform table at 1024/texel): a few low-roughness, grazing
-  // texels stop with an estimate several times below their error, and they set the
-  // maximum (docs/accuracy.md). Reported, not failed, until the estimator is fixed.
+  // Criterion (2) is not met here (measured: adaptive 2.46e6 samples, 0.997 of texels below
+  // E, max error 1.19e-3, against 1.05e6 for the uniform table at 1024/texel): the Sobol'
+  // prefixes integrate worse than the uniform path's centred Hammersley set and the
+  // estimate keeps a margin, which together cost more than the texels' difference in
+  // difficulty saves (docs/accuracy.md, "Oracle bounds"). Reported, not failed.
   CHECK_NOFAIL(double(lut.totalSamples) < total);
-  CHECK(double(lut.totalSamples) < kMaxOverUniform * total);
+  CHECK(double(lut.totalSamples) < kLutOverUniform * total);
 }
 
 TEST_CASE("Tolerance: command line and sidecars", "[tolerance][cli]") {

@@ -81,8 +81,9 @@ nlohmann::json sidecar(const LutResult& lut, const std::string& exrPath, bool ha
     j["adaptive"] = {{"tolerance", o.tolerance},
                      {"error_factor", kLutErrorFactor},
                      {"min_samples", kLutToleranceMinSamples},
-                     {"estimate", "K * max(d(N), d(N/2)/2), d(N) = max over channels of |mean of the first N minus "
-                                  "mean of the first N/2 points| of one 2-D Sobol' sequence per texel"},
+                     {"estimate", "K * RMS over the texel's 3x3 neighbourhood of max(d(N), d(N/2)/2), d(N) = max over "
+                                  "channels of |mean of the first N minus mean of the first N/2 points| of one 2-D "
+                                  "Sobol' sequence per texel"},
                      {"achieved_error_max", lut.errorEstimateMax},
                      {"achieved_error_mean", lut.errorEstimateMean},
                      {"samples_total", lut.totalSamples},

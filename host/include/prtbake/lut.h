@@ -53,8 +53,9 @@ struct LutOptions {
   // successive blocks of ONE 2-D Sobol' sequence (every power-of-two prefix is a
   // (0,m,2)-net, as good as the Hammersley set of the uniform path), doubling its count
   // N per round and keeping every earlier sample. With d(N) = max_channel |X̂(N) − X̂(N/2)|
-  // the change of the prefix means (≈ 2 err(N) for an error falling like 1/N),
-  //   err(t) = kLutErrorFactor · max(d(N), d(N/2)/2),
+  // the change of the prefix means (≈ 2 err(N) for an error falling like 1/N) and
+  // x(N) = max(d(N), d(N/2)/2),
+  //   err(t) = kLutErrorFactor · √(mean of x² over the texel's 3×3 neighbourhood),
   // and a texel stops at the first N ≥ kLutToleranceMinSamples with err < tolerance, or
   // when doubling would pass toleranceMaxSamples (counted at the cap). Channels: A, B
   // and cloth when requested (E = A + B is then below 2·tolerance). Deterministic.
