@@ -369,7 +369,9 @@ w("The adaptive mode loses at equal maximum error wherever the counts above say 
   "fluctuation about it averaged out) and picks its constants after the fact: %s on the bumpy sphere and %s "
   "on the table, before any estimate costs a sample. That is the ceiling for a rule that estimates an error "
   "scale, and on the shadowed mesh it is low: there the errors of vertices differ mostly by chance, not by "
-  "difficulty. Two things eat what is left, the integrator and the estimate."
+  "difficulty. Two things eat what is left, the integrator and the estimate. The ceiling binds rules that "
+  "choose how many samples an item gets; rules that choose where its samples go are not bound by it, and "
+  "the prototypes at the end of this page beat uniform sampling on the cavity and the table that way."
   % (span(bumpy_or, 1), span(lut_or, 1), span(bumpy_or, 2), span(lut_or, 2)))
 w("")
 w("First, a progressive sequence is a worse integrator than the "
@@ -425,6 +427,15 @@ section("replay_transport.md", "Oracle bounds on the bumpy sphere",
         "`bench/study/oracle.py`. Each cell: uniform total at the oracle's maximum error ÷ the oracle's total. "
         "The reference's own bound (%s) is below every E in the table." % fmt(next(
             (r["ref_bound"] for r in rows if r["curve"] == "bumpy-shadowed-reference"), float("nan"))))
+section("proto_adaptive.md", "Prototypes: adapting where an item's samples go",
+        "Not part of prtbake yet: `bench/study/proto_adaptive.py` (NumPy) tries adaptivity inside each item's "
+        "domain, with a local error estimate, and judges it like `--tolerance` against uniform sampling at the "
+        "same maximum error (last column; above 1, the prototype is cheaper). Transport: a quadtree over the "
+        "cosine-weighted hemisphere square that traces cell corners and splits only cells whose corners "
+        "disagree on visibility, on the open sphere cavity of tests/test_tolerance.cpp (closed-form DC "
+        "coefficient). LUT: adaptive 3×3 Gauss–Legendre cubature on the reference's half-vector pieces, "
+        "splitting the cell whose value changes most when it is split. Both spend their samples where the "
+        "integrand has edges or peaks, which per-item counts cannot do.")
 w("Regenerate with `bash bench/study/run.sh`.")
 w("")
 open(os.path.join(ROOT, "docs", "accuracy.md"), "w").write("\n".join(md))

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The speed-against-accuracy study: builds what it needs, runs every sweep, writes
 # bench/results/study/ (CSV, JSON), docs/images/accuracy_*.png and docs/accuracy.md.
-#   bash bench/study/run.sh          full study (~2.5 min of sweeps on the 2-core machine, plus the build)
+#   bash bench/study/run.sh          full study (~5 min on the 2-core machine, plus the build)
 #   STUDY_QUICK=1 bash bench/study/run.sh   smaller sweeps (a few minutes)
 # Needs python3 with matplotlib for the plots (apt-get install python3-matplotlib) and numpy for
 # the offline replays of the stopping rules (python3-numpy).
@@ -83,6 +83,7 @@ NPY=$(python_with numpy)
 if [ -n "$NPY" ]; then
   "$NPY" "$ROOT/bench/study/replay_lut.py" "$OUT/replay_lut.md"
   "$NPY" "$ROOT/bench/study/replay_transport.py" "$OUT/transport_pervertex.txt" "$OUT/replay_transport.md"
+  "$NPY" "$ROOT/bench/study/proto_adaptive.py" "$OUT/proto_adaptive.md"
 else
   echo "study: no python3 with numpy (apt-get install python3-numpy): replays skipped" >&2
 fi
