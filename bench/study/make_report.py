@@ -371,7 +371,9 @@ w("The adaptive mode loses at equal maximum error wherever the counts above say 
   "scale, and on the shadowed mesh it is low: there the errors of vertices differ mostly by chance, not by "
   "difficulty. Two things eat what is left, the integrator and the estimate. The ceiling binds rules that "
   "choose how many samples an item gets; rules that choose where its samples go are not bound by it, and "
-  "the prototypes at the end of this page beat uniform sampling on the cavity and the table that way."
+  "the prototypes at the end of this page beat uniform sampling that way on the cavity (one smooth "
+  "visibility edge) and the table, but not on the bumpy sphere, whose small occluders slip between the "
+  "corners of the starting cells."
   % (span(bumpy_or, 1), span(lut_or, 1), span(bumpy_or, 2), span(lut_or, 2)))
 w("")
 w("First, a progressive sequence is a worse integrator than the "
@@ -433,9 +435,11 @@ section("proto_adaptive.md", "Prototypes: adapting where an item's samples go",
         "same maximum error (last column; above 1, the prototype is cheaper). Transport: a quadtree over the "
         "cosine-weighted hemisphere square that traces cell corners and splits only cells whose corners "
         "disagree on visibility, on the open sphere cavity of tests/test_tolerance.cpp (closed-form DC "
-        "coefficient). LUT: adaptive 3×3 Gauss–Legendre cubature on the reference's half-vector pieces, "
+        "coefficient) and on vertices of the bumpy sphere (brute-force rays, converged reference). LUT: adaptive 3×3 Gauss–Legendre cubature on the reference's half-vector pieces, "
         "splitting the cell whose value changes most when it is split. Both spend their samples where the "
-        "integrand has edges or peaks, which per-item counts cannot do.")
+        "integrand has edges or peaks, which per-item counts cannot do. The quadtree only sees an edge that "
+        "crosses a cell between its corners: on the bumpy sphere, occluders smaller than the starting cells "
+        "are missed and set the maximum error, so it loses there.")
 w("Regenerate with `bash bench/study/run.sh`.")
 w("")
 open(os.path.join(ROOT, "docs", "accuracy.md"), "w").write("\n".join(md))

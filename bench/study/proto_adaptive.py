@@ -10,7 +10,7 @@ maximum error, as criterion (2) of `--tolerance` asks:
 - **transport, visibility quadtree** on the open sphere cavity of tests/test_tolerance.cpp
   (radius 1, opening half-angle π/3), whose DC coefficient has a closed form: from any inner
   point the cosine-weighted visible fraction is the opening's share of the sphere's area,
-  (1 − cos α)/2. The hemisphere is mapped to the unit square by the cosine-weighted map of the
+  (1 − cos α)/2; and on vertices of the bumpy sphere of the study (converged reference). The hemisphere is mapped to the unit square by the cosine-weighted map of the
   uniform path; a cell is traced at its four corners (shared with its neighbours); a cell whose
   corners agree counts as fully visible or occluded, a mixed cell is split in four, and the
   estimate counts a mixed cell by its visible corners. The item's error estimate is
@@ -21,7 +21,7 @@ maximum error, as criterion (2) of `--tolerance` asks:
   estimate, and the cell with the largest estimate is split until their sum is below E.
   Samples = integrand evaluations.
 
-Needs python3-numpy. Usage: proto_adaptive.py OUT.md   (a few minutes on 2 cores)
+Needs python3-numpy. Usage: proto_adaptive.py OUT.md   (about 5 minutes on 2 cores)
 """
 import heapq
 import math
@@ -42,63 +42,49 @@ def judged(uniform_max_errors, max_error, mean_cost):
     return "%.2f" % (n / mean_cost) if n < float("inf") else "> %.2f" % (GRID[-1] / mean_cost)
 
 
-# --- transport: open sphere cavity -----------------------------------------------------------
+# --- transport: a visibility quadtree --------------------------------------------------------
 
-class Cavity:
-    def __init__(self, points=200, opening=math.pi / 3, seed=1):
-        rng = np.random.default_rng(seed)
-        self.cos_open = math.cos(opening)
-        self.exact = Y0 * (1 - self.cos_open) / 2
-        p = []
-        while len(p) < points:   # inner points, away from the rim as in the test
-            v = rng.normal(size=3)
-            v /= np.linalg.norm(v)
-            if v[2] < math.cos(opening + math.pi / 12):
-                p.append(v)
-        self.points = np.array(p)
-        self.rotations = rng.uniform(0, 2 * math.pi, points)   # the uniform path's rotation
+def tangent_frame(n):
+    a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+    t = np.cross(n, a)
+    t /= np.linalg.norm(t)
+    return t, np.cross(n, t)
+
+
+class Scene:
+    """Points with normals; subclasses say which rays are unoccluded and give the reference."""
+
+    def __init__(self, points, normals, seed):
+        self.points, self.normals = points, normals
+        self.rotations = np.random.default_rng(seed).uniform(0, 2 * math.pi, len(points))  # as the uniform path
 
     def directions(self, i, u1, u2):
-        """Cosine-weighted map of (u1, u2) into the hemisphere of point i's inward normal."""
-        n = -self.points[i]
-        a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
-        t = np.cross(n, a)
-        t /= np.linalg.norm(t)
-        b = np.cross(n, t)
+        """Cosine-weighted map of (u1, u2) into point i's hemisphere."""
+        t, b = tangent_frame(self.normals[i])
         r, phi = np.sqrt(u1), 2 * math.pi * u2 + self.rotations[i]
         return ((r * np.cos(phi))[..., None] * t + (r * np.sin(phi))[..., None] * b
-                + np.sqrt(np.maximum(0, 1 - u1))[..., None] * n)
+                + np.sqrt(np.maximum(0, 1 - u1))[..., None] * self.normals[i])
 
-    def visible(self, i, w):
-        """The ray from point i leaves through the opening: its second sphere hit is in the cap."""
-        p = self.points[i]
-        q = p - 2 * (w @ p)[..., None] * w
-        return q[..., 2] > self.cos_open
-
-    def uniform_max_errors(self):
-        out = []
-        for n in GRID:
-            k = np.arange(n)
-            u1, u2 = (k + 0.5) / n, lut.unit(lut.radinv2(k))
-            out.append(max(abs(Y0 * self.visible(i, self.directions(i, u1, u2)).mean() - self.exact)
-                           for i in range(len(self.points))))
-        return out
+    def uniform(self, i, n):
+        """DC coefficient of point i from n centred Hammersley directions (the --samples path)."""
+        k = np.arange(n)
+        return Y0 * self.visible(i, self.directions(i, (k + 0.5) / n, lut.unit(lut.radinv2(k)))).mean()
 
     def quadtree(self, i, tol, cells0, c, depth=14):
         """(DC estimate, rays traced) for point i."""
         side = 1 << depth
         seen = {}
 
-        def vis(x, y):
-            if (x, y) not in seen:
-                u1 = min(max(x / side, 1e-9), 1 - 1e-9)
-                seen[(x, y)] = float(self.visible(i, self.directions(i, np.array(u1), np.array(y / side))))
-            return seen[(x, y)]
-
         def classify(cells):
+            corners = {(x + dx, y + dy) for x, y, s in cells for dx in (0, s) for dy in (0, s)} - seen.keys()
+            if corners:
+                keys = list(corners)
+                u1 = np.clip(np.array([x for x, _ in keys]) / side, 1e-9, 1 - 1e-9)
+                vis = self.visible(i, self.directions(i, u1, np.array([y for _, y in keys]) / side))
+                seen.update(zip(keys, vis.astype(float)))
             full, mixed = 0.0, []
             for x, y, s in cells:
-                v = vis(x, y) + vis(x + s, y) + vis(x, y + s) + vis(x + s, y + s)
+                v = seen[(x, y)] + seen[(x + s, y)] + seen[(x, y + s)] + seen[(x + s, y + s)]
                 if v == 4:
                     full += (s / side) ** 2
                 elif v > 0:
@@ -117,18 +103,100 @@ class Cavity:
         return Y0 * (full + sum((s / side) ** 2 * f for _, _, s, f in mixed)), len(seen)
 
 
-def transport_rows():
-    cav = Cavity()
-    umax = cav.uniform_max_errors()
+class Cavity(Scene):
+    """Inner points of the open sphere cavity; the DC coefficient has a closed form."""
+
+    def __init__(self, points=200, opening=math.pi / 3, seed=1):
+        rng = np.random.default_rng(seed)
+        self.cos_open = math.cos(opening)
+        p = []
+        while len(p) < points:   # inner points, away from the rim as in the test
+            v = rng.normal(size=3)
+            v /= np.linalg.norm(v)
+            if v[2] < math.cos(opening + math.pi / 12):
+                p.append(v)
+        super().__init__(np.array(p), -np.array(p), seed)
+        self.reference = np.full(points, Y0 * (1 - self.cos_open) / 2)
+        self.reference_bound = 0.0
+
+    def visible(self, i, w):
+        """The ray leaves through the opening: its second hit on the sphere is in the cap."""
+        p = self.points[i]
+        return (p - 2 * (w @ p)[..., None] * w)[..., 2] > self.cos_open
+
+
+class BumpySphere(Scene):
+    """makeBumpySphere(2000) (host/src/mesh.cpp) at randomly chosen vertices; brute-force rays
+    against the triangles that rise above the vertex's tangent plane; the reference is 2^16
+    Hammersley directions, its bound the change from 2^15."""
+
+    def __init__(self, vertices=60, seed=3):
+        rings = int(math.sqrt(2000 / 4.0)) + 1
+        segs, pos, start = 2 * rings, [], []
+        for i in range(rings + 1):
+            th = math.pi * i / rings
+            start.append(len(pos))
+            for j in range(1 if i in (0, rings) else segs):
+                ph = 2 * math.pi * j / segs
+                r = 1.0 + 0.18 * math.sin(7 * th) * math.cos(5 * ph) + 0.08 * math.sin(19 * th + 3 * ph)
+                pos.append(r * np.array([math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th)]))
+
+        def vid(i, j):
+            return start[i] if i in (0, rings) else start[i] + j % segs
+
+        tris = []
+        for i in range(rings):
+            for j in range(segs):
+                a, b, c, d = vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)
+                tris += [t for t in ((a, b, c), (a, c, d)) if len(set(t)) == 3]
+        pos, tris = np.array(pos), np.array(tris)
+        normals = np.zeros_like(pos)
+        face = np.cross(pos[tris[:, 1]] - pos[tris[:, 0]], pos[tris[:, 2]] - pos[tris[:, 0]])
+        for k in range(3):
+            np.add.at(normals, tris[:, k], face)
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        chosen = np.random.default_rng(seed).choice(len(pos), vertices, replace=False)
+        super().__init__(pos[chosen], normals[chosen], seed)
+        self.occluders = []
+        for p, n in zip(self.points, self.normals):
+            up = ((pos[tris] - p) @ n > 1e-7).any(1)
+            v0 = pos[tris[up, 0]]
+            self.occluders.append((v0, pos[tris[up, 1]] - v0, pos[tris[up, 2]] - v0))
+        self.reference = np.array([self.uniform(i, 1 << 16) for i in range(vertices)])
+        self.reference_bound = np.abs(self.reference - [self.uniform(i, 1 << 15) for i in range(vertices)]).max()
+
+    def visible(self, i, w):
+        """No occluding triangle within (1e-6, ∞) along the ray (Möller–Trumbore)."""
+        v0, e1, e2 = self.occluders[i]
+        o = self.points[i] + 1e-4 * self.normals[i]
+        out = np.ones(len(w), bool)
+        for s in range(0, len(w), 1024):
+            d = w[s:s + 1024, None, :]
+            pv = np.cross(d, e2[None])
+            det = (pv * e1[None]).sum(-1)
+            ok = np.abs(det) > 1e-12
+            inv = 1 / np.where(ok, det, 1.0)
+            tv = (o - v0)[None]
+            u = (tv * pv).sum(-1) * inv
+            qv = np.cross(tv, e1[None])
+            v = (d * qv).sum(-1) * inv
+            t = (e2[None] * qv).sum(-1) * inv
+            out[s:s + 1024] = ~(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-6)).any(1)
+        return out
+
+
+def transport_rows(scene, rules):
+    items = range(len(scene.points))
+    umax = [max(abs(scene.uniform(i, n) - scene.reference[i]) for i in items) for n in GRID]
     rows = []
-    for cells0, c in ((8, 0.15), (16, 0.5)):
+    for cells0, c in rules:
         for tol in (1e-2, 5e-3, 2e-3, 1e-3):
-            res = [cav.quadtree(i, tol, cells0, c) for i in range(len(cav.points))]
-            err = np.array([abs(v - cav.exact) for v, _ in res])
+            res = [scene.quadtree(i, tol, cells0, c) for i in items]
+            err = np.abs(np.array([v for v, _ in res]) - scene.reference)
             rays = np.mean([n for _, n in res])
             rows.append("| %d², c = %g | %g | %.3f | %.2e | %.0f | %s |" % (
                 cells0, c, tol, (err < tol).mean(), err.max(), rays, judged(umax, err.max(), rays)))
-    return len(cav.points), rows
+    return rows
 
 
 # --- LUT: adaptive cubature on the half-vector domain ------------------------------------------
@@ -240,9 +308,13 @@ def lut_rows():
 def main():
     header = ["| rule | E | fraction below E | max error | mean samples per item | uniform ÷ prototype |",
               "|---|---|---|---|---|---|"]
-    points, trows = transport_rows()
+    rules = ((8, 0.15), (16, 0.5), (16, 0.25))
+    cav = Cavity()
     md = ["Transport, open sphere cavity (%d inner points, DC coefficient against its closed form); "
-          "samples = rays:" % points, ""] + header + trows
+          "samples = rays:" % len(cav.points), ""] + header + transport_rows(cav, rules)
+    bumpy = BumpySphere()
+    md += ["", "Transport, bumpy sphere (%d vertices, DC coefficient; reference bound %.1e); samples = rays:"
+           % (len(bumpy.points), bumpy.reference_bound), ""] + header + transport_rows(bumpy, rules)
     md += ["", "LUT, 32² GGX (against 2^18 centred Hammersley points per texel); samples = integrand "
            "evaluations:", ""] + header + lut_rows()
     open(sys.argv[1], "w").write("\n".join(md) + "\n")

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The speed-against-accuracy study: builds what it needs, runs every sweep, writes
 # bench/results/study/ (CSV, JSON), docs/images/accuracy_*.png and docs/accuracy.md.
-#   bash bench/study/run.sh          full study (~5 min on the 2-core machine, plus the build)
+#   bash bench/study/run.sh          full study (~9 min on the 2-core machine, plus the build)
 #   STUDY_QUICK=1 bash bench/study/run.sh   smaller sweeps (a few minutes)
 # Needs python3 with matplotlib for the plots (apt-get install python3-matplotlib) and numpy for
 # the offline replays of the stopping rules (python3-numpy).
