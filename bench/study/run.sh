@@ -3,10 +3,13 @@
 # bench/results/study/ (CSV, JSON), docs/images/accuracy_*.png and docs/accuracy.md.
 #   bash bench/study/run.sh          full study (~9 min on the 2-core machine, plus the build)
 #   STUDY_QUICK=1 bash bench/study/run.sh   smaller sweeps (a few minutes)
-# Needs python3 with matplotlib for the plots (apt-get install python3-matplotlib) and numpy for
-# the offline replays of the stopping rules (python3-numpy).
+# Installs what it needs (the build's Debian packages, python3-matplotlib for the plots and
+# python3-numpy for the offline replays) as root or via sudo, like scripts/setup.sh.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+. "$ROOT/scripts/packages.sh"
+# shellcheck disable=SC2086  # the list is split into packages on purpose
+install_missing $PRTBAKE_PKGS python3-numpy python3-matplotlib
 BUILD=${BUILD:-$ROOT/build}
 OUT=$ROOT/bench/results/study
 mkdir -p "$OUT" "$ROOT/docs/images"
