@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+COUNTS = [int(round(64 * 2 ** (k / 2))) for k in range(17)]   # uniform counts, 64 .. 16384 (as study.cpp)
 ALPHAS = (0.75, 1.0, 1.25, 1.5)
 CS = (0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0)
 

@@ -30,10 +30,9 @@ import sys
 import numpy as np
 
 import replay_lut as lut
-from oracle import uniform_per_item
+from oracle import COUNTS as GRID, uniform_per_item
 
 Y0 = 0.28209479177387814
-GRID = [int(round(64 * 2 ** (k / 2))) for k in range(17)]   # uniform counts, 64 .. 16384
 
 
 def judged(uniform_max_errors, max_error, mean_cost):

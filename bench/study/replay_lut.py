@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from oracle import table as oracle_table
+from oracle import COUNTS, table as oracle_table
 
 S = 32                                   # table size (texels per axis)
 NS = [2 ** k for k in range(4, 15)]      # prefix lengths 16 .. 16384
@@ -229,7 +229,7 @@ def main():
     w("An oracle that stops each texel's Sobol' prefix at the first N whose true error is below E needs "
       "fewer samples than uniform sampling at the same maximum error by " + ", ".join(oracle) + ".")
     w("")
-    grid = [int(round(64 * 2 ** (k / 2))) for k in range(17)]
+    grid = COUNTS
     gerr = np.array([err(seq["hammersley"][n] if n in seq["hammersley"] else table(*hammersley(n))) for n in grid])
     w("Oracle bounds (bench/study/oracle.py) from the centred Hammersley table at %d counts from %d to %d:"
       % (len(grid), grid[0], grid[-1]))

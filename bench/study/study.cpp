@@ -131,18 +131,21 @@ std::vector<double> funkHecke(const Mesh& m, int order) {
   return out;
 }
 
-// Per-vertex worst coefficient error.
+// Each vertex's worst coefficient error (stride coefficients per vertex).
+std::vector<double> vertexErrors(const std::vector<double>& a, const std::vector<double>& b, int stride) {
+  std::vector<double> w(a.size() / size_t(stride), 0.0);
+  for (size_t v = 0; v < w.size(); ++v)
+    for (int k = 0; k < stride; ++k) w[v] = std::max(w[v], std::abs(a[v * stride + k] - b[v * stride + k]));
+  return w;
+}
+
+// Largest and RMS of the per-vertex worst coefficient errors.
 Err perVertex(const std::vector<double>& a, const std::vector<double>& b, int stride) {
   Err e;
   double s = 0;
-  const size_t nv = a.size() / size_t(stride);
-  for (size_t v = 0; v < nv; ++v) {
-    double w = 0;
-    for (int k = 0; k < stride; ++k) w = std::max(w, std::abs(a[v * stride + k] - b[v * stride + k]));
-    e.max = std::max(e.max, w);
-    s += w * w;
-  }
-  e.rms = nv ? std::sqrt(s / double(nv)) : 0;
+  const std::vector<double> w = vertexErrors(a, b, stride);
+  for (double x : w) e.max = std::max(e.max, x), s += x * x;
+  e.rms = w.empty() ? 0 : std::sqrt(s / double(w.size()));
   return e;
 }
 
@@ -205,7 +208,7 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       }
     }
     if (c.mode == TransportMode::Interreflected) continue;
-    if (c.name == "bumpy-shadowed" && !gPerVertexPath.empty()) {
+    if (c.name == "bumpy-shadowed") {
       // Per-vertex errors of the default sampler on a 2^(1/2) grid of counts, for the
       // offline oracle bounds (replay_transport.py): one line per count, "N e_0 e_1 …".
       FILE* f = std::fopen(gPerVertexPath.c_str(), "w");
@@ -213,13 +216,8 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       for (int k = 0; k <= 16; ++k) {
         TransportOptions o = base;
         o.samples = int(std::lround(64 * std::pow(2.0, k / 2.0)));
-        const std::vector<double> v = coeffsOf(computeTransport(rt, c.mesh, o));
         std::fprintf(f, "%d", o.samples);
-        for (size_t i = 0; i < c.mesh.vertexCount(); ++i) {
-          double w = 0;
-          for (int j = 0; j < nc; ++j) w = std::max(w, std::abs(v[i * nc + j] - ref[i * nc + j]));
-          std::fprintf(f, " %.4g", w);
-        }
+        for (double w : vertexErrors(coeffsOf(computeTransport(rt, c.mesh, o)), ref, nc)) std::fprintf(f, " %.4g", w);
         std::fprintf(f, "\n");
       }
       std::fclose(f);
@@ -230,12 +228,8 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       TransportResult r;
       const Timing t = timeIt(1, false, [&] { r = computeTransport(rt, c.mesh, o); });
       const Err e = perVertex(coeffsOf(r), ref, nc);
-      size_t below = 0;
-      for (size_t v = 0; v < c.mesh.vertexCount(); ++v) {
-        double w = 0;
-        for (int k = 0; k < nc; ++k) w = std::max(w, std::abs(double(r.coeffs[v * nc + k]) - ref[v * nc + k]));
-        below += w < tol;
-      }
+      const std::vector<double> w = vertexErrors(coeffsOf(r), ref, nc);
+      const size_t below = size_t(std::count_if(w.begin(), w.end(), [tol](double x) { return x < tol; }));
       row("transport", c.name + "-adaptive", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), refBound);
       std::fprintf(gOut, "#adaptive,transport,%s,%g,%.6f,%zu,%zu,%g\n", c.name.c_str(), tol,
                    double(below) / double(c.mesh.vertexCount()), r.verticesAtCap, r.verticesUnoccludable,
@@ -330,9 +324,9 @@ int main(int argc, char** argv) {
   }
   const bool quick = argc > 3 && std::string(argv[3]) == "quick";
   gOut = std::fopen(argv[1], "w");
+  if (!gOut) return 1;
   const std::string csv = argv[1];
   gPerVertexPath = csv.substr(0, csv.find_last_of('/') + 1) + "transport_pervertex.txt";
-  if (!gOut) return 1;
   std::fprintf(gOut, "product,curve,param,value,wall_s,cpu_s,err_max,err_rms,samples_total,ref_bound\n");
   Runtime rt("cpu");
   std::fprintf(stderr, "device: %s\n", rt.deviceLabel().c_str());
