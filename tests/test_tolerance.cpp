@@ -2,7 +2,8 @@
 // references. Criterion (1), ≥ 95 % of vertices/texels below E, is asserted everywhere.
 // Criterion (2), the adaptive total below the total of the smallest power-of-two uniform
 // count (default sampler) whose maximum error is ≤ the adaptive run's maximum error, is
-// asserted on the sphere and reported (CHECK_NOFAIL) where it does not hold yet.
+// asserted on the sphere and the LUTs, and reported (CHECK_NOFAIL) on the cavity, where it
+// does not hold yet.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -25,14 +26,12 @@ const double kPi = 3.14159265358979323846;
 const double kY0 = 0.28209479177387814;
 // Acceptance (issue 6): at least 95 % of the vertices/texels below the tolerance.
 constexpr double kMinFractionBelow = 0.95;
-// Where criterion (2) does not hold (cavity, LUT), a regression bound instead: the adaptive
+// Where criterion (2) does not hold (cavity), a regression bound instead: the adaptive
 // total may not exceed the measured multiple of the uniform total at equal maximum error
-// by more than 25 %. Measured 1.80x (cavity) and 2.35x (LUT, 32², 3×3-pooled estimate);
-// the runs are deterministic, so a change of the estimator or the sequence that costs
-// 25 % more samples fails here.
+// by more than 25 %. Measured 1.80x; the runs are deterministic, so a change of the
+// estimator or the sequence that costs 25 % more samples fails here.
 constexpr double kRegressionMargin = 1.25;
 constexpr double kCavityOverUniform = 1.80 * kRegressionMargin;
-constexpr double kLutOverUniform = 2.35 * kRegressionMargin;
 
 // Per-item error: the largest |x − ref| over the item's values.
 struct Errors {
@@ -72,7 +71,8 @@ Errors cavityErrors(const Mesh& m, const TransportResult& r, double alpha) {
 Errors lutErrors(const LutResult& lut, const LutValues& ref) {
   Errors e;
   for (size_t t = 0; t < lut.a.size(); ++t)
-    e.perItem.push_back(std::max(std::abs(lut.a[t] - ref.a[t]), std::abs(lut.b[t] - ref.b[t])));
+    e.perItem.push_back(std::max({std::abs(lut.a[t] - ref.a[t]), std::abs(lut.b[t] - ref.b[t]),
+                                  ref.cloth.empty() ? 0.0 : std::abs(lut.third[t] - ref.cloth[t])}));
   return e;
 }
 
@@ -148,36 +148,45 @@ TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance
 }
 
 TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
-  constexpr double kTolerance = 1e-3;
-  LutOptions o;
-  o.size = 32;
-  o.tolerance = kTolerance;
-  const LutResult lut = computeLut(test::runtime(), o);
-  const LutValues ref = evaluateLutReference(o, [&] {
-    std::vector<LutPoint> p;
-    for (int j = 0; j < o.size; ++j)
-      for (int i = 0; i < o.size; ++i) p.push_back({(i + 0.5) / o.size, (j + 0.5) / o.size});
-    return p;
-  }());
-  const Errors e = lutErrors(lut, ref);
-  const int uniform = uniformSamplesFor(e.max(), 65536, [&](int n) {
-    LutOptions u = o;
-    u.tolerance = 0, u.samples = n;
-    return lutErrors(computeLut(test::runtime(), u), ref).max();
-  });
-  const double total = uniformTotal(uniform, o.toleranceMaxSamples, size_t(o.size) * o.size);
-  WARN("lut E=" << kTolerance << ": below E " << e.fractionBelow(kTolerance) << ", max error " << e.max()
-                << ", estimate max " << lut.errorEstimateMax << ", adaptive samples " << lut.totalSamples
-                << ", uniform " << uniform << "/texel = " << total << ", at cap " << lut.texelsAtCap);
-  CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
-  CHECK(uniform > 0);
-  // Criterion (2) is not met here (measured: adaptive 2.46e6 samples, 0.997 of texels below
-  // E, max error 1.19e-3, against 1.05e6 for the uniform table at 1024/texel): the Sobol'
-  // prefixes integrate worse than the uniform path's centred Hammersley set and the
-  // estimate keeps a margin, which together cost more than the texels' difference in
-  // difficulty saves (docs/accuracy.md, "Oracle bounds"). Reported, not failed.
-  CHECK_NOFAIL(double(lut.totalSamples) < total);
-  CHECK(double(lut.totalSamples) < kLutOverUniform * total);
+  // GGX and Beckmann; cloth at a looser E. Samples are integrand evaluations: the
+  // cubature's, and for the uniform table one per sample and integrand (a cloth table's
+  // kernel evaluates the specular and the cloth integrand at every sample, at different
+  // half vectors: 2 per sample).
+  struct Case {
+    const char* name;
+    LutNdf ndf;
+    bool cloth;
+    double tolerance;
+  };
+  for (const Case& c : {Case{"ggx", LutNdf::Ggx, false, 1e-3}, Case{"beckmann", LutNdf::Beckmann, false, 1e-4},
+                        Case{"ggx+cloth", LutNdf::Ggx, true, 1e-3}}) {
+    LutOptions o;
+    o.size = 32;
+    o.ndf = c.ndf;
+    o.cloth = c.cloth;
+    o.tolerance = c.tolerance;
+    const LutResult lut = computeLut(test::runtime(), o);
+    const LutValues ref = evaluateLutReference(o, [&] {
+      std::vector<LutPoint> p;
+      for (int j = 0; j < o.size; ++j)
+        for (int i = 0; i < o.size; ++i) p.push_back({(i + 0.5) / o.size, (j + 0.5) / o.size});
+      return p;
+    }());
+    const Errors e = lutErrors(lut, ref);
+    const int uniform = uniformSamplesFor(e.max(), 65536, [&](int n) {
+      LutOptions u = o;
+      u.tolerance = 0, u.samples = n;
+      return lutErrors(computeLut(test::runtime(), u), ref).max();
+    });
+    const double total = uniformTotal(uniform, o.toleranceMaxSamples, size_t(o.size) * o.size) * (c.cloth ? 2 : 1);
+    WARN("lut " << c.name << " E=" << c.tolerance << ": below E " << e.fractionBelow(c.tolerance) << ", max error "
+                << e.max() << ", estimate max " << lut.errorEstimateMax << ", adaptive evaluations "
+                << lut.totalSamples << ", uniform " << uniform << "/texel = " << total << " evaluations, at cap "
+                << lut.texelsAtCap);
+    CHECK(e.fractionBelow(c.tolerance) >= kMinFractionBelow);
+    CHECK(uniform > 0);
+    CHECK(double(lut.totalSamples) < total);
+  }
 }
 
 TEST_CASE("Tolerance: command line and sidecars", "[tolerance][cli]") {

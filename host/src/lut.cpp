@@ -8,7 +8,6 @@
 
 #include "lut_detail.h"
 #include "lut_sampling.clh"
-#include "sobol.h"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
 
@@ -31,23 +30,15 @@ double radicalInverse2(uint32_t k) {
   return double(k) * (1.0 / 4294967296.0);
 }
 
-// The per-sample table of lut_sampling.clh, in double then rounded to float.
-// sobolFirst < 0: the Hammersley set of `samples` points (the tables); otherwise points
-// sobolFirst … sobolFirst + samples − 1 of the 2-D Sobol' sequence (sobol.h; the adaptive
-// driver, lut_adaptive.cpp, adds blocks [n, 2n) round by round).
-// The Sobol' points get a fixed digital shift of 1010… in the first coordinate: the
-// first 2^m points then sit at k/2^m + (1/3 or 2/3)/2^m instead of at the left ends of
-// their strata (measured on 64² GGX: max error 2.2e-3 → 1.4e-3 at 1024 points, 4.9e-4 →
-// 3.1e-4 at 4096; Hammersley's midpoints give 1.0e-3 and 3.0e-4).
-constexpr uint32_t kLutSobolShift0 = 0xAAAAAAAAu;
-std::vector<float> sampleTable(int samples, int nPad, int64_t sobolFirst = -1) {
+// The per-sample table of lut_sampling.clh (the Hammersley set of `samples` points), in
+// double then rounded to float.
+std::vector<float> sampleTable(int samples, int nPad) {
   std::vector<float> t(size_t(LUT_TAB_ROWS) * nPad, 0.0f);
   auto at = [&](int row, int k) -> float& { return t[size_t(row) * nPad + k]; };
   for (int k = 0; k < nPad; ++k) {
     // Padding repeats a harmless point (mask 0) so no lane computes NaN.
     const int kk = k < samples ? k : 0;
-    double u1 = (kk + 0.5) / samples, u2 = radicalInverse2(uint32_t(kk));
-    if (sobolFirst >= 0) detail::sobolPoint(uint32_t(sobolFirst + kk), kLutSobolShift0, 0, u1, u2);
+    const double u1 = (kk + 0.5) / samples, u2 = radicalInverse2(uint32_t(kk));
     const double r = std::sqrt(u1), cphi = std::cos(2 * kPi * u2), sphi = std::sin(2 * kPi * u2);
     const double t1 = r * cphi;
     at(LUT_TAB_T1SQ, k) = float(t1 * t1);
@@ -95,7 +86,7 @@ struct KernelOut {
 // most kChunk points so that device and staging memory stay bounded for 8192² tables.
 template <class PointAt>
 KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& pointAt, double* kernelSeconds,
-                    double* buildSeconds, int64_t sobolFirst = -1) {
+                    double* buildSeconds) {
   constexpr size_t kChunk = size_t(1) << 20;
   const int nPad = (o.samples + LUT_SIMD - 1) / LUT_SIMD * LUT_SIMD;
   const double build0 = rt.buildSeconds();
@@ -106,7 +97,7 @@ KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& po
   if (o.cloth) res.cloth.resize(count);
   if (kernelSeconds) *kernelSeconds = 0;
   if (count == 0) return res;
-  const std::vector<float> table = sampleTable(o.samples, nPad, sobolFirst);
+  const std::vector<float> table = sampleTable(o.samples, nPad);
   cl::Buffer tab(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table.size() * sizeof(float),
                  const_cast<float*>(table.data()));
   const size_t chunk = std::min(count, kChunk);
@@ -239,16 +230,6 @@ void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<
   for (float e : stdErr) mx = std::max(mx, double(e)), sum += e;
   r.stdErrMax = mx;
   r.stdErrMean = stdErr.empty() ? 0 : sum / double(stdErr.size());
-}
-
-void evaluateLutSobol(Runtime& rt, const LutOptions& o, const std::vector<std::pair<float, float>>& muAlpha,
-                      uint32_t first, std::vector<float>& a, std::vector<float>& b, std::vector<float>& cloth,
-                      double* kernelSeconds) {
-  double seconds = 0;
-  KernelOut k = runKernel(
-      rt, o, muAlpha.size(), [&](size_t i) { return muAlpha[i]; }, &seconds, nullptr, int64_t(first));
-  if (kernelSeconds) *kernelSeconds += seconds;
-  a = std::move(k.a), b = std::move(k.b), cloth = std::move(k.cloth);
 }
 
 std::vector<LutPoint> texelPoints(int n) {

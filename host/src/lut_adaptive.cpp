@@ -1,32 +1,147 @@
-// Adaptive sample counts for the LUT ("--tolerance E"; see lut.h).
+// Adaptive cubature for the LUT ("--tolerance E"; see lut.h).
 //
-// Every texel takes the points of ONE 2-D Sobol' sequence (sobol.h, unshifted: the
-// uniform tables share one unshifted Hammersley set too), in blocks: round 0 takes
-// points [0, n0), round j ≥ 1 points [N/2, N) with N = n0·2^j, so a texel at N samples
-// holds exactly the first N points, a (0, log₂N, 2)-net like the N-point Hammersley set
-// of the uniform path. With X̂_c(N) the mean of channel c over the first N points
-// (channels A, B and cloth) and the differences of successive prefixes
-//   d(N) = max_c |X̂_c(N) − X̂_c(N/2)|,
-// a sequence whose error falls like 1/N has |X̂(N) − X̂(N/2)| ≈ err(N/2) ≈ 2 err(N). The
-// estimate takes the last two differences, so that one lucky coincidence of two prefix
-// means does not stop a texel, and pools them over the texel's 3×3 neighbourhood (RMS),
-// because neighbours share the points and a texel whose successive prefixes happen to
-// agree mostly has neighbours whose prefixes do not:
-//   x(N) = max(d(N), d(N/2)/2),   err(N) = K · √(mean over the 3×3 neighbours of x²)
-// (K = kLutErrorFactor; a neighbour that stopped at N' < N counts with x(N')·N'/N, its
-// estimate carried to N by the 1/N fall that d(N/2)/2 assumes too), defined from
-// N = 4 n0 on. A texel stops at the first N ≥ kLutToleranceMinSamples with err(N) < E, or
-// when one more round would pass the cap (then it is counted at the cap). Measured
-// (bench/study/replay_lut.py, 32² GGX, E = 1e-2 to 3e-4): the pooling lifts the fraction of
-// texels below E from 0.947–1.000 to 0.974–1.000 at the same or a lower sample total.
+// Each texel's integrals are those of the double reference (lut_reference.cpp): smooth
+// pieces of the half-vector domain, each the image of the unit square; the cloth table
+// has its own pieces. Every piece starts as kLutRootCells² leaf cells. A leaf carries Q,
+// the 3×3 Gauss–Legendre value over its square, and the values of its four children; it
+// contributes the children's sum, and
+//   est(leaf) = max over channels |Q − Σ children|
+// is the error of the coarser Q, so a pessimistic estimate of the finer sum's (for a
+// smooth integrand the rule's error falls like h^6, the children's sum is far closer).
+// A root leaf's estimate has a floor against chance agreement (kRootGuard below).
+// The texel's estimate is Σ est over its leaves. While it is ≥ E, the leaves with the
+// largest estimates are split (a split leaf's children become leaves, each needing its
+// own four children: 16 squares), the fewest whose removal brings the sum of the others
+// below E, so that the splits of one round go to the device together (kernels/
+// lut_cubature.cl, one work-item per square). A texel stops when its estimate is below
+// E, or when the next split would pass the cap (counted at the cap). Samples are
+// integrand evaluations, 9 per square. Texels are independent and done in batches of
+// kTexelBatch, which bounds the host memory of large tables. Deterministic.
+//
+// Measured against uniform Hammersley tables at equal maximum error: docs/accuracy.md,
+// bench/study/.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numeric>
 
+#include "lut_cell.h"
 #include "lut_detail.h"
 #include "prtbake/error.h"
+#include "prtbake/runtime.h"
 
 namespace prtbake::detail {
+namespace {
+
+const double kPi = 3.14159265358979323846;
+constexpr int kNodesPerSquare = 9;         // the 3×3 rule
+constexpr int kSquaresPerSplit = 16;       // four new leaves, four children each
+constexpr size_t kTexelBatch = 1 << 14;
+// A root cell is coarse enough for Q and its children to agree by chance while both miss
+// a feature (measured: 64² Beckmann, E = 1e-4, one texel 1.4e-3 off with an estimate of
+// 7e-5). Its estimate is therefore at least kRootGuard × the children's summed distance
+// from what Q's own interpolant predicts for each quadrant (which cannot cancel across
+// quadrants). Measured on 64² tables: 0.1 leaves Beckmann at E = 1e-2 at a maximum error
+// of 4.1e-3, 0.25 brings it to 9e-4 for 5 % more evaluations; 0.5 costs 10–30 % more.
+constexpr double kRootGuard = 0.25;
+
+static_assert(sizeof(LutCell) == 32, "LutCell must match kernels/lut_cell.h");
+
+struct Leaf {
+  LutCell cell;         // the leaf's square
+  double q[3] = {};     // its 3×3 value (A, B, C)
+  double kids[4][3] = {};
+  double pred[4][3] = {};  // root leaves: Q's interpolant integrated over each quadrant
+  int depth = 0;           // 0 for a root leaf
+  double est = 0;
+};
+
+struct Texel {
+  std::vector<Leaf> leaves;
+  int64_t evals = 0;
+  bool done = false;
+};
+
+// The pieces present at (μ, α) for the specular or the cloth integrand (the kernel
+// recomputes their geometry in float).
+std::vector<int> piecesAt(double mu, double alpha, bool cloth) {
+  std::vector<int> p;
+  if (alpha <= 0) return p;
+  const double thetaV = std::acos(std::clamp(mu, 0.0, 1.0)), sv = std::sqrt(std::max(0.0, 1 - mu * mu));
+  const double th1 = std::max(0.0, kPi / 4 - thetaV / 2);
+  const int bit = cloth ? LUT_PIECE_CLOTH : 0;
+  if (th1 > 0) p.push_back(bit);
+  if (sv > 0) p.push_back(bit | LUT_PIECE_BAND);
+  return p;
+}
+
+LutCell square(const LutCell& parent, int kid) {
+  LutCell c = parent;
+  c.h = parent.h / 2;
+  c.s0 = parent.s0 + (kid & 1) * c.h;
+  c.t0 = parent.t0 + (kid >> 1) * c.h;
+  return c;
+}
+
+class CellEvaluator {
+ public:
+  CellEvaluator(Runtime& rt, const LutOptions& o) : rt_(rt) {
+    const std::string opts = "-DLUT_NDF=" + std::to_string(o.ndf == LutNdf::Beckmann ? 1 : 0) +
+                             " -DLUT_VIS=" + std::to_string(int(o.visibility));
+    kernel_ = rt.kernel("lut_cubature.cl", "lut_cells", opts);
+  }
+  // The integrals over `cells`, (A, B, C) each.
+  std::vector<float> operator()(const std::vector<LutCell>& cells, double* seconds) {
+    std::vector<float> out(cells.size() * 4 * LUT_CELL_OUT_FLOAT4S);
+    if (cells.empty()) return out;
+    cl::Buffer in(rt_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, cells.size() * sizeof(LutCell),
+                  const_cast<LutCell*>(cells.data()));
+    cl::Buffer res(rt_.context(), CL_MEM_WRITE_ONLY, out.size() * sizeof(float));
+    kernel_.setArg(0, int(cells.size()));
+    kernel_.setArg(1, in);
+    kernel_.setArg(2, res);
+    const size_t local = 16, global = (cells.size() + local - 1) / local * local;
+    const auto t0 = std::chrono::steady_clock::now();
+    rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
+    rt_.queue().finish();
+    *seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    rt_.queue().enqueueReadBuffer(res, CL_TRUE, 0, out.size() * sizeof(float), out.data());
+    return out;
+  }
+
+ private:
+  Runtime& rt_;
+  cl::Kernel kernel_;
+};
+
+// A pending request: the value of square `kid` (−1: the leaf's own Q) of leaf `leaf`.
+struct Request {
+  uint32_t texel, leaf;
+  int kid;
+};
+
+void requestKids(const Leaf& l, uint32_t texel, uint32_t leaf, std::vector<LutCell>& cells,
+                 std::vector<Request>& reqs) {
+  for (int k = 0; k < 4; ++k) {
+    cells.push_back(square(l.cell, k));
+    reqs.push_back({texel, leaf, k});
+  }
+}
+
+// max over channels |Q − Σ children|; for a root leaf at least kRootGuard ·
+// Σ_k |child_k − quadrant k of Q's interpolant|.
+double leafEstimate(const Leaf& l) {
+  double e = 0, g = 0;
+  for (int c = 0; c < 3; ++c) {
+    e = std::max(e, std::abs(l.q[c] - (l.kids[0][c] + l.kids[1][c] + l.kids[2][c] + l.kids[3][c])));
+    double gc = 0;
+    for (int k = 0; k < 4; ++k) gc += std::abs(l.kids[k][c] - l.pred[k][c]);
+    g = std::max(g, gc);
+  }
+  return l.depth == 0 ? std::max(e, kRootGuard * g) : e;
+}
+
+}  // namespace
 
 LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
   const auto tStart = std::chrono::steady_clock::now();
@@ -36,84 +151,127 @@ LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
   r.device = rt.deviceLabel();
   const int n = options.size;
   const size_t texels = size_t(n) * n;
-  const int nch = options.cloth ? 3 : 2;
-  const int n0 = kLutToleranceMinSamples / 4;
-  std::vector<double> sum(texels * nch, 0.0), prev(texels * nch, 0.0), dPrev(texels, 0.0), x(texels, 0.0);
+  const double build0 = rt.buildSeconds();
+  CellEvaluator evaluate(rt, options);
+  r.buildSeconds = rt.buildSeconds() - build0;
+  const double tol = options.tolerance;
+  const int64_t cap = options.toleranceMaxSamples;
   r.a.assign(texels, 0.0f), r.b.assign(texels, 0.0f);
-  std::vector<float> cloth(options.cloth ? texels : 0, 0.0f), stdErr(texels, 0.0f);
+  std::vector<float> cloth(options.cloth ? texels : 0, 0.0f);
   r.errorEstimate.assign(texels, 0.0f);
   r.samplesPerTexel.assign(texels, 0);
-  std::vector<uint32_t> active(texels);
-  for (size_t t = 0; t < texels; ++t) active[t] = uint32_t(t);
-  for (int round = 0; !active.empty(); ++round) {
-    const int total = n0 << round;              // points per texel after this round
-    const int first = round == 0 ? 0 : total / 2;  // this round's block [first, total)
-    std::vector<std::pair<float, float>> pts(active.size());
-    for (size_t i = 0; i < active.size(); ++i) {
-      const size_t col = active[i] % size_t(n), row = active[i] / size_t(n);
-      pts[i] = {float((col + 0.5) / n), float(lutAlpha(options, (row + 0.5) / n))};
-    }
-    LutOptions ro = options;
-    ro.samples = total - first;
-    ro.tolerance = 0;
-    std::vector<float> a, b, c;
-    evaluateLutSobol(rt, ro, pts, uint32_t(first), a, b, c, &r.kernelSeconds);
-    // First every active texel's means and x(N), then the pooled decisions.
-    for (size_t i = 0; i < active.size(); ++i) {
-      const uint32_t t = active[i];
-      const float v[3] = {a[i], b[i], nch == 3 ? c[i] : 0.0f};
-      double d = 0;
-      for (int ch = 0; ch < nch; ++ch) {
-        double& s = sum[t * nch + ch];
-        s += double(ro.samples) * v[ch];
-        const double mean = s / total;
-        d = std::max(d, std::abs(mean - prev[t * nch + ch]));
-        prev[t * nch + ch] = mean;
-        (ch == 0 ? r.a : ch == 1 ? r.b : cloth)[t] = float(mean);
+
+  for (size_t first = 0; first < texels; first += kTexelBatch) {
+    const size_t count = std::min(kTexelBatch, texels - first);
+    std::vector<Texel> batch(count);
+    std::vector<LutCell> cells;
+    std::vector<Request> reqs;
+    // Round 0: the root leaves, their values and their children.
+    for (size_t i = 0; i < count; ++i) {
+      const size_t t = first + i;
+      const double mu = (double(t % size_t(n)) + 0.5) / n;
+      const double alpha = lutAlpha(options, (double(t / size_t(n)) + 0.5) / n);
+      Texel& tx = batch[i];
+      std::vector<int> pieces = piecesAt(mu, alpha, false);
+      if (options.cloth) {
+        const std::vector<int> cp = piecesAt(mu, std::max(alpha, kLutClothAlphaMin), true);
+        pieces.insert(pieces.end(), cp.begin(), cp.end());
       }
-      r.samplesPerTexel[t] = total;
-      if (round == 0) continue;  // no difference yet
-      x[t] = std::max(d, dPrev[t] / 2);
-      dPrev[t] = d;
-    }
-    std::vector<uint32_t> next;
-    for (size_t i = 0; i < active.size() && round > 0; ++i) {
-      const uint32_t t = active[i];
-      const int col = int(t % size_t(n)), row = int(t / size_t(n));
-      double pooled = 0;
-      int count = 0;
-      for (int rr = std::max(row - 1, 0); rr <= std::min(row + 1, n - 1); ++rr)
-        for (int cc = std::max(col - 1, 0); cc <= std::min(col + 1, n - 1); ++cc, ++count) {
-          const size_t j = size_t(rr) * n + cc;
-          const double xj = x[j] * r.samplesPerTexel[j] / total;  // a stopped neighbour, carried to N
-          pooled += xj * xj;
+      for (int piece : pieces) {
+        const bool isCloth = piece & LUT_PIECE_CLOTH;
+        const float a = float(isCloth ? std::max(alpha, kLutClothAlphaMin) : alpha);
+        for (int j = 0; j < kLutRootCells * kLutRootCells; ++j) {
+          Leaf l;
+          const float h = 1.0f / kLutRootCells;
+          l.cell = {float(mu), a, (j % kLutRootCells) * h, (j / kLutRootCells) * h, h, piece, 0, 0};
+          const uint32_t li = uint32_t(tx.leaves.size());
+          cells.push_back(l.cell);
+          reqs.push_back({uint32_t(i), li, -1});
+          requestKids(l, uint32_t(i), li, cells, reqs);
+          tx.leaves.push_back(l);
+          tx.evals += 5 * kNodesPerSquare;
         }
-      const double err = kLutErrorFactor * std::sqrt(pooled / count);
-      stdErr[t] = float(err);
-      r.errorEstimate[t] = float(err);
-      const bool defined = round >= 2;
-      if (!defined) {
-        next.push_back(t);
-        continue;
       }
-      if (total >= kLutToleranceMinSamples && err < options.tolerance) continue;
-      if (int64_t(total) * 2 > options.toleranceMaxSamples) {
-        ++r.texelsAtCap;
-        continue;
-      }
-      next.push_back(t);
     }
-    if (round == 0) next = active;
-    active.swap(next);
+    while (!cells.empty()) {
+      const std::vector<float> v = evaluate(cells, &r.kernelSeconds);
+      std::vector<uint32_t> touched;
+      for (size_t k = 0; k < reqs.size(); ++k) {
+        const Request& q = reqs[k];
+        Leaf& l = batch[q.texel].leaves[q.leaf];
+        const float* vk = &v[4 * LUT_CELL_OUT_FLOAT4S * k];
+        double* dst = q.kid < 0 ? l.q : l.kids[q.kid];
+        for (int c = 0; c < 3; ++c) dst[c] = vk[c];
+        if (q.kid < 0)
+          for (int quad = 0; quad < 4; ++quad)
+            for (int c = 0; c < 3; ++c) l.pred[quad][c] = vk[4 * (1 + quad) + c];
+        if (touched.empty() || touched.back() != q.texel) touched.push_back(q.texel);
+      }
+      cells.clear(), reqs.clear();
+      for (uint32_t i : touched) {
+        Texel& tx = batch[i];
+        double total = 0;
+        for (Leaf& l : tx.leaves) total += (l.est = leafEstimate(l));
+        if (total < tol) continue;
+        // The fewest largest leaves whose removal leaves the others below E.
+        std::vector<uint32_t> order(tx.leaves.size());
+        std::iota(order.begin(), order.end(), 0u);
+        std::sort(order.begin(), order.end(), [&](uint32_t x, uint32_t y) {
+          return tx.leaves[x].est > tx.leaves[y].est || (tx.leaves[x].est == tx.leaves[y].est && x < y);
+        });
+        size_t splits = 0;
+        for (double rest = total; splits < order.size() && rest >= tol; ++splits) {
+          if (tx.evals + int64_t(splits + 1) * kSquaresPerSplit * kNodesPerSquare > cap) break;
+          rest -= tx.leaves[order[splits]].est;
+        }
+        if (splits == 0) {
+          ++r.texelsAtCap;
+          continue;
+        }
+        for (size_t s = 0; s < splits; ++s) {
+          const Leaf parent = tx.leaves[order[s]];
+          for (int k = 0; k < 4; ++k) {
+            Leaf child;
+            child.cell = square(parent.cell, k);
+            child.depth = parent.depth + 1;
+            std::copy(parent.kids[k], parent.kids[k] + 3, child.q);
+            // The first child replaces the parent; the others are appended.
+            const uint32_t li = k == 0 ? order[s] : uint32_t(tx.leaves.size());
+            if (k == 0) tx.leaves[li] = child;
+            else tx.leaves.push_back(child);
+            requestKids(child, i, li, cells, reqs);
+          }
+        }
+        tx.evals += int64_t(splits) * kSquaresPerSplit * kNodesPerSquare;
+      }
+    }
+    for (size_t i = 0; i < count; ++i) {
+      const size_t t = first + i;
+      const Texel& tx = batch[i];
+      double sum[3] = {}, est = 0;
+      for (const Leaf& l : tx.leaves) {
+        for (int c = 0; c < 3; ++c) sum[c] += l.kids[0][c] + l.kids[1][c] + l.kids[2][c] + l.kids[3][c];
+        est += l.est;
+      }
+      const double alpha = lutAlpha(options, (double(t / size_t(n)) + 0.5) / n);
+      if (alpha <= 0) {  // a mirror: closed form
+        const double mu = (double(t % size_t(n)) + 0.5) / n, fc = std::pow(1 - mu, 5);
+        sum[0] = 1 - fc, sum[1] = fc;
+      }
+      r.a[t] = float(sum[0]), r.b[t] = float(sum[1]);
+      if (options.cloth) cloth[t] = float(sum[2]);
+      r.errorEstimate[t] = float(est);
+      r.samplesPerTexel[t] = int(tx.evals);
+    }
   }
-  finishLut(r, cloth, stdErr);
+  finishLut(r, cloth, r.errorEstimate);
   double errSum = 0;
   for (size_t t = 0; t < texels; ++t) {
     r.errorEstimateMax = std::max(r.errorEstimateMax, double(r.errorEstimate[t]));
     errSum += r.errorEstimate[t];
     const int s = r.samplesPerTexel[t];
     r.totalSamples += uint64_t(s);
-    const size_t k = size_t(std::lround(std::log2(double(s))));
+    const size_t k = s > 0 ? size_t(std::floor(std::log2(double(s)))) : 0;
     if (r.samplesHistogram.size() <= k) r.samplesHistogram.resize(k + 1, 0);
     ++r.samplesHistogram[k];
   }

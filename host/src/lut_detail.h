@@ -3,7 +3,6 @@
 #pragma once
 
 #include <cstdint>
-#include <utility>
 #include <vector>
 
 #include "prtbake/lut.h"
@@ -15,11 +14,6 @@ namespace prtbake::detail {
 void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<float>& stdErr);
 // The texel centres of an n×n table, row major.
 std::vector<LutPoint> texelPoints(int n);
-// The kernel at (μ, α) points, each the mean over the o.samples points first, first + 1, …
-// of the 2-D Sobol' sequence (sobol.h); adds the kernel time to *kernelSeconds.
-void evaluateLutSobol(Runtime& rt, const LutOptions& o, const std::vector<std::pair<float, float>>& muAlpha,
-                      uint32_t first, std::vector<float>& a, std::vector<float>& b, std::vector<float>& cloth,
-                      double* kernelSeconds);
 // The adaptive driver (LutOptions::tolerance > 0).
 LutResult computeLutAdaptive(Runtime& rt, const LutOptions& o);
 

@@ -78,12 +78,15 @@ nlohmann::json sidecar(const LutResult& lut, const std::string& exrPath, bool ha
     j["samples"] = "adaptive";
     j["parameters"]["samples"] = "adaptive";
     j["parameters"]["tolerance"] = o.tolerance;
+    j["method"] = "adaptive cubature: 3x3 Gauss-Legendre cells over the half vector (pieces as the reference), "
+                  "the cells with the largest estimates split until the texel's sum is below the tolerance";
     j["adaptive"] = {{"tolerance", o.tolerance},
-                     {"error_factor", kLutErrorFactor},
                      {"min_samples", kLutToleranceMinSamples},
-                     {"estimate", "K * RMS over the texel's 3x3 neighbourhood of max(d(N), d(N/2)/2), d(N) = max over "
-                                  "channels of |mean of the first N minus mean of the first N/2 points| of one 2-D "
-                                  "Sobol' sequence per texel"},
+                     {"root_cells", kLutRootCells},
+                     {"samples_meaning", "integrand evaluations per texel; histogram key k: texels with [k, 2k)"},
+                     {"estimate", "sum over the texel's leaf cells of max over channels |Q(cell) - sum of Q(children)|, "
+                                  "Q the 3x3 Gauss-Legendre rule (root cells: at least 0.25 x the children's summed distance "
+                                  "from the quadrants of Q's interpolant); the table holds the children's sums"},
                      {"achieved_error_max", lut.errorEstimateMax},
                      {"achieved_error_mean", lut.errorEstimateMean},
                      {"samples_total", lut.totalSamples},

@@ -49,27 +49,28 @@ struct LutOptions {
   bool kullaConty = false;    // extra channels E and Eavg
   bool fastMath = false;      // -cl-fast-relaxed-math and native sqrt/rsqrt/divide
   LutDirections directions = LutDirections::Table;
-  // Adaptive sampling ("--tolerance E"; 0: off, `samples` is used). Each texel takes
-  // successive blocks of ONE 2-D Sobol' sequence (every power-of-two prefix is a
-  // (0,m,2)-net, as good as the Hammersley set of the uniform path), doubling its count
-  // N per round and keeping every earlier sample. With d(N) = max_channel |X̂(N) − X̂(N/2)|
-  // the change of the prefix means (≈ 2 err(N) for an error falling like 1/N) and
-  // x(N) = max(d(N), d(N/2)/2),
-  //   err(t) = kLutErrorFactor · √(mean of x² over the texel's 3×3 neighbourhood),
-  // and a texel stops at the first N ≥ kLutToleranceMinSamples with err < tolerance, or
-  // when doubling would pass toleranceMaxSamples (counted at the cap). Channels: A, B
-  // and cloth when requested (E = A + B is then below 2·tolerance). Deterministic.
+  // Adaptive cubature ("--tolerance E"; 0: off, `samples` is used). Each texel's
+  // integrals are taken over the smooth pieces of the half-vector domain of the double
+  // reference (evaluateLutReference), each split into square cells (kLutRootCells² at
+  // first). A cell carries its 3×3 Gauss–Legendre value Q and its four children's values;
+  // it contributes the children's sum and estimates its error by max over channels
+  // |Q − Σ children| (the error of the coarser rule: pessimistic; for a root cell at
+  // least a quarter of the children's summed distance from the quadrants of Q's own
+  // interpolant, against chance agreement of Q and Σ children). The cells with the
+  // largest estimates are split until the texel's sum of estimates is below `tolerance`,
+  // or until the next split would pass toleranceMaxSamples integrand evaluations
+  // (counted at the cap). Channels: A, B and cloth when requested (E = A + B is then
+  // below 2·tolerance). Samples are integrand evaluations. Deterministic.
   double tolerance = 0;
   int toleranceMaxSamples = 65536;
 };
 
-// K of the adaptive estimate (see LutOptions::tolerance); measured: ≥ 95 % of texels end
-// below E (tests/test_tolerance.cpp, docs/accuracy.md).
-constexpr double kLutErrorFactor = 2.0;
-// Fewest samples at which a texel may stop (and the least --max-samples). Fewer lets the
-// prefixes of low-roughness texels all miss their rare zero-weight (N·L ≤ 0) samples
-// and agree on a biased value.
-constexpr int kLutToleranceMinSamples = 256;
+// Cells per side of each piece of a texel's domain before any split (see
+// LutOptions::tolerance); the root cells cost 5 squares × 9 evaluations each.
+constexpr int kLutRootCells = 2;
+// The least --max-samples with --tolerance: room for the root cells of the specular and
+// the cloth pieces (720 evaluations) and one split (144).
+constexpr int kLutToleranceMinSamples = 1024;
 
 // Throws UsageError (subject "--size", "--samples", ...) for a size outside
 // [1, kLutMaxSize], samples outside [1, kLutMaxSamples], or both cloth and multiscatter.
@@ -122,7 +123,7 @@ struct LutResult {
   std::string device;           // Runtime::deviceLabel()
   bool reference = false;       // computed by computeLutReference
   // Adaptive sampling (LutOptions::tolerance > 0): samples per texel (row major),
-  // histogram[k] = texels that used 2^k samples, texels that hit the cap, and the
+  // histogram[k] = texels that used [2^k, 2^(k+1)) integrand evaluations, texels that hit the cap, and the
   // prefix-difference error estimate (max over channels) per texel, max and mean.
   std::vector<int> samplesPerTexel;
   std::vector<size_t> samplesHistogram;
