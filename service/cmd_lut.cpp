@@ -39,15 +39,18 @@ int runLut(const CommandLine& cl) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   writeLut(lut, out, cl.has("half"), seconds);
   char line[256];
-  std::snprintf(line, sizeof line, "lut %dx%d, %d samples: kernel %.2f ms, build %.2f s, std error max %.2e -> %s",
-                lut.size, lut.size, o.samples, lut.kernelSeconds * 1e3, lut.buildSeconds, lut.stdErrMax,
-                out.c_str());
-  status(cl, line);
   if (o.tolerance > 0) {
-    std::snprintf(line, sizeof line, "lut: adaptive: %.4g samples in all, estimated error max %.3g mean %.3g, %zu texels at the cap",
-                  double(lut.totalSamples), lut.errorEstimateMax, lut.errorEstimateMean, lut.texelsAtCap);
-    status(cl, line);
+    std::snprintf(line, sizeof line,
+                  "lut %dx%d, adaptive cubature: %.4g integrand evaluations in all, estimated error max %.3g mean "
+                  "%.3g, %zu texels at the cap; kernel %.2f ms, build %.2f s -> %s",
+                  lut.size, lut.size, double(lut.totalSamples), lut.errorEstimateMax, lut.errorEstimateMean,
+                  lut.texelsAtCap, lut.kernelSeconds * 1e3, lut.buildSeconds, out.c_str());
+  } else {
+    std::snprintf(line, sizeof line, "lut %dx%d, %d samples: kernel %.2f ms, build %.2f s, std error max %.2e -> %s",
+                  lut.size, lut.size, o.samples, lut.kernelSeconds * 1e3, lut.buildSeconds, lut.stdErrMax,
+                  out.c_str());
   }
+  status(cl, line);
   return 0;
 }
 
@@ -62,8 +65,8 @@ PRTBAKE_COMMAND(Command{
         {"output", true, "output OpenEXR path (also -o); the sidecar is OUT.json"},
         {"size", true, "table size N (N x N texels, 1..8192; default 128)"},
         {"samples", true, "samples per texel (default 1024)"},
-        {"tolerance", true, "adaptive samples per texel until every channel's estimated error < E"},
-        {"max-samples", true, "with --tolerance: the most samples per texel (default 65536)"},
+        {"tolerance", true, "adaptive cubature per texel until its estimated error < E in every channel"},
+        {"max-samples", true, "with --tolerance: the most integrand evaluations per texel (1024..2^20, default 65536)"},
         {"ndf", true, "ggx (default) or beckmann"},
         {"visibility", true, "smith-correlated (default), smith-separable or schlick-ggx (k = alpha/2)"},
         {"multiscatter", false, "B channel: E = A + B for multiple-scattering compensation (Filament)"},

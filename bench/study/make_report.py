@@ -221,16 +221,19 @@ if any(p == "transport" for (p, c) in curves):
 if adaptive:
     w("## `--tolerance`: adaptive sample counts")
     w("")
-    w("One 2-D Sobol' sequence per vertex/texel (transport: a digital shift from the seed and the uniform "
-      "path's per-vertex rotation about the normal; LUT: unshifted but for a fixed 1010… digital shift of the "
-      "first coordinate), taken in blocks [N/2, N) so that an item at N samples holds exactly the first N "
-      "points, a (0, log2 N, 2)-net like the N-point Hammersley set. With d(N) the largest change of a "
-      "coefficient/channel mean from the first N/2 to the first N points, the estimate is "
-      "`K·max(d(N), d(N/2)/2)` with K = 2 (LUT: the RMS of max(d(N), d(N/2)/2) over the texel's 3×3 "
-      "neighbourhood, times K); an item stops at the first N ≥ the minimum (64 per vertex, 256 "
-      "per texel) whose estimate is below E (cap 65536 per vertex/texel). In shadowed mode, vertices that "
-      "cannot be occluded take the closed form and no samples. Fraction below E = vertices/texels whose actual error (every "
-      "coefficient/channel, against the reference) is below the tolerance; the acceptance target is 0.95.")
+    w("Transport: one 2-D Sobol' sequence per vertex (a digital shift from the seed and the uniform path's "
+      "per-vertex rotation about the normal), taken in blocks [N/2, N) so that a vertex at N samples holds "
+      "exactly the first N points, a (0, log2 N, 2)-net like the N-point Hammersley set. With d(N) the largest "
+      "change of a coefficient mean from the first N/2 to the first N points, the estimate is "
+      "`K·max(d(N), d(N/2)/2)` with K = 2; a vertex stops at the first N ≥ 64 whose estimate is below E (cap "
+      "65536). In shadowed mode, vertices that cannot be occluded take the closed form and no samples. "
+      "LUT: adaptive cubature (docs/lut.md): the reference's half-vector pieces start as 2 × 2 cells, each "
+      "with its 3×3 Gauss–Legendre value Q and its four children's; a cell's estimate is |Q − Σ children| "
+      "(root cells: at least a quarter of the children's summed distance from the quadrants of Q's "
+      "interpolant), and the cells with the largest estimates are split until the texel's sum is below E. "
+      "LUT samples are integrand evaluations (9 per cell value). Fraction below E = vertices/texels whose "
+      "actual error (every coefficient/channel, against the reference) is below the tolerance; the "
+      "acceptance target is 0.95.")
     w("")
     w("| product | case | E | fraction below E | actual max error | samples (adaptive, total) | at cap |")
     w("|---|---|---|---|---|---|---|")
@@ -360,45 +363,47 @@ def span(rows, col):
 
 
 bumpy_or, lut_or = oracle_rows("replay_transport.md"), oracle_rows("replay_lut.md")
-w("The adaptive mode loses at equal maximum error wherever the counts above say so. How much room there is, two "
+lut_wins = [c for c in uniform_cmp if c[0] == "lut"]
+lut_ratio = [c[4] / c[3] for c in lut_wins if c[4]]
+w("**LUT.** The adaptive cubature needs %s fewer integrand evaluations than the uniform table at the same "
+  "maximum error over the tolerances above (64² GGX and Beckmann), and it meets the fraction-below-E target "
+  "at every one. It spends its evaluations where the integrand has a peak or an edge (the lobe, the "
+  "horizon), which a per-texel sample count cannot do. It replaced a per-texel count over Sobol' prefixes "
+  "that lost at E ≤ 3e-3 (below)." % ("%.1f-%.1fx" % (min(lut_ratio), max(lut_ratio)) if lut_ratio else "(not measured)"))
+w("")
+w("**Transport.** The adaptive mode still chooses how many samples each vertex gets, and on shadowed meshes "
+  "it loses at equal maximum error wherever the counts above say so. How much room there is, two "
   "oracles say (bench/study/oracle.py; tables under \"Oracle bounds\" below), each judged against uniform "
   "sampling at its own maximum error. The *luck* oracle gives each item the first count at which its actual "
-  "error is below E: it needs %s fewer samples on the bumpy sphere and %s fewer on a 32² GGX table. Most of "
-  "that is knowing where a count happens to land near the answer, which no estimate made from the samples can "
-  "know. The *scale* oracle knows only each item's error scale (from its true errors at every count, the "
-  "fluctuation about it averaged out) and picks its constants after the fact: %s on the bumpy sphere and %s "
-  "on the table, before any estimate costs a sample. That is the ceiling for a rule that estimates an error "
-  "scale, and on the shadowed mesh it is low: there the errors of vertices differ mostly by chance, not by "
-  "difficulty. Two things eat what is left, the integrator and the estimate. The ceiling binds rules that "
-  "choose how many samples an item gets; rules that choose where its samples go are not bound by it, and "
-  "the prototypes at the end of this page beat uniform sampling that way on the cavity (one smooth "
-  "visibility edge) and the table, but not on the bumpy sphere, whose small occluders slip between the "
-  "corners of the starting cells."
+  "error is below E: it needs %s fewer samples on the bumpy sphere and %s fewer on a 32² GGX table sampled "
+  "the same way. Most of that is knowing where a count happens to land near the answer, which no estimate "
+  "made from the samples can know. The *scale* oracle knows only each item's error scale (from its true "
+  "errors at every count, the fluctuation about it averaged out) and picks its constants after the fact: "
+  "%s on the bumpy sphere and %s on the table, before any estimate costs a sample. That is the ceiling for "
+  "a rule that estimates an error scale, and on the shadowed mesh it is low: there the errors of vertices "
+  "differ mostly by chance, not by difficulty. The ceiling binds rules that choose how many samples an item "
+  "gets; rules that choose where its samples go are not bound by it: the cubature on the LUT, and the "
+  "visibility quadtree prototyped at the end of this page, which beats uniform sampling on the cavity (one "
+  "smooth visibility edge) but not on the bumpy sphere, whose small occluders slip between the corners of "
+  "the starting cells."
   % (span(bumpy_or, 1), span(lut_or, 1), span(bumpy_or, 2), span(lut_or, 2)))
 w("")
-w("First, a progressive sequence is a worse integrator than the "
-  "uniform path's centred Hammersley set at the same count: the Sobol' prefix of N points has a mean error "
-  "1.2x (bumpy sphere) to 2x (32² GGX, N = 1024: 2.9e-4 against 1.4e-4) that of N Hammersley points, whose "
-  "first coordinate sits at stratum midpoints; an Owen-scrambled Sobol' sequence (hash-based nested "
-  "scrambling) measured the same. Second, the estimate: the prefix difference d(N) does not track the "
-  "error item by item on these integrands. On low-roughness, grazing LUT texels (roughness rows below about "
-  "0.15, N·V below about 0.15) the weight has a thin region near u1 → 1 (long GGX/Beckmann tails, "
-  "reflections below the horizon) that successive prefixes sample alike, so their means agree to a few "
-  "1e-4 while the error is 3e-3 to 4.5e-3 (measured at K = 1, without pooling). Neighbouring texels share "
-  "the points but seldom stall at the same N, so the LUT pools the estimate over the 3×3 neighbourhood "
-  "(RMS): that keeps the fraction below E at or above 0.95 down to E = 1e-4, yet the few texels it misses "
-  "leave the LUT's maximum error at %s (GGX) and %s (Beckmann) at E = 1e-4; on shadowed vertices the "
-  "visibility edge makes the "
-  "error/estimate ratio spread over more than a decade, so K = 2 over-samples most vertices while a few "
-  "still end above E. Measured offline on the same data (every item run to 16384 points, every stopping "
-  "rule replayed): K = 0.5, 1 or 2, the maximum over each item's grid or mesh neighbours instead of its own "
-  "estimate, and restarting with a fresh centred Hammersley set at each doubling all lose at every target "
-  "of 2e-3 and tighter on both cases (at 1e-2 to 3e-3 a few of them win, by up to 1.9x on the LUT). Where the integrand is smooth (unshadowed convex sphere, "
-  "tests/test_tolerance.cpp) and at loose tolerances the adaptive mode wins. Its use is a per-item error "
-  "estimate for most items (the fraction column); uniform Hammersley/table sampling remains the cheaper "
-  "way to a given maximum error. Vertices that cannot be occluded cost no rays in any mode."
-  % tuple(fmt(next((r["err_max"] for r in rows if r["curve"] == nd + "-adaptive" and r["value"] == 1e-4),
-                   float("nan"))) for nd in ("ggx", "beckmann")))
+w("Two things eat what is left of the ceiling for per-item counts. First, a progressive sequence is a worse "
+  "integrator than the uniform path's centred Hammersley set at the same count: the Sobol' prefix of N "
+  "points has a mean error 1.2x (bumpy sphere) to 2x (32² GGX, N = 1024: 2.9e-4 against 1.4e-4) that of N "
+  "Hammersley points, whose first coordinate sits at stratum midpoints; an Owen-scrambled Sobol' sequence "
+  "(hash-based nested scrambling) measured the same. Second, the estimate: the prefix difference d(N) does "
+  "not track the error item by item. On shadowed vertices the visibility edge makes the error/estimate "
+  "ratio spread over more than a decade, so K = 2 over-samples most vertices while a few still end above E; "
+  "on the former LUT path, low-roughness grazing texels had a thin region of the weight that successive "
+  "prefixes sampled alike. Measured offline on the same data (every item run to 16384 points, every "
+  "stopping rule replayed): K = 0.5, 1 or 2, the maximum over each item's grid or mesh neighbours instead "
+  "of its own estimate, and restarting with a fresh centred Hammersley set at each doubling all lose at "
+  "every target of 2e-3 and tighter. Where the integrand is smooth (unshadowed convex sphere, "
+  "tests/test_tolerance.cpp) and at loose tolerances the transport's adaptive mode wins; on shadowed meshes "
+  "its use is a per-vertex error estimate for most vertices (the fraction column), and uniform Hammersley "
+  "sampling remains the cheaper way to a given maximum error. Vertices that cannot be occluded cost no rays "
+  "in any mode.")
 w("")
 def section(result, title, intro):
     """A heading, an introduction and the markdown file RES/result, when the study wrote it."""
@@ -414,7 +419,8 @@ def section(result, title, intro):
 
 
 section("replay_lut.md", "Replay of stopping rules on a 32² GGX table",
-        "`bench/study/replay_lut.py` (NumPy port of the GGX estimator) integrates every texel of a 32² table to "
+        "For the former LUT path (per-texel counts over Sobol' prefixes of the sampling estimator), which the "
+        "cubature replaced. `bench/study/replay_lut.py` (NumPy port of the GGX estimator) integrates every texel of a 32² table to "
         "16384 points with several point sequences and replays each stopping rule on the saved prefix means. "
         "Independent Owen scrambles per texel make neighbouring texels' errors independent, so an estimate "
         "pooled over the 3×3 neighbourhood becomes reliable (at K = 1, 98.8-99.2 % of texels below E from "
@@ -430,13 +436,16 @@ section("replay_transport.md", "Oracle bounds on the bumpy sphere",
         "The reference's own bound (%s) is below every E in the table." % fmt(next(
             (r["ref_bound"] for r in rows if r["curve"] == "bumpy-shadowed-reference"), float("nan"))))
 section("proto_adaptive.md", "Prototypes: adapting where an item's samples go",
-        "Not part of prtbake yet: `bench/study/proto_adaptive.py` (NumPy) tries adaptivity inside each item's "
+        "`bench/study/proto_adaptive.py` (NumPy, double) tries adaptivity inside each item's "
         "domain, with a local error estimate, and judges it like `--tolerance` against uniform sampling at the "
         "same maximum error (last column; above 1, the prototype is cheaper). Transport: a quadtree over the "
         "cosine-weighted hemisphere square that traces cell corners and splits only cells whose corners "
         "disagree on visibility, on the open sphere cavity of tests/test_tolerance.cpp (closed-form DC "
-        "coefficient) and on vertices of the bumpy sphere (brute-force rays, converged reference). LUT: adaptive 3×3 Gauss–Legendre cubature on the reference's half-vector pieces, "
-        "splitting the cell whose value changes most when it is split. Both spend their samples where the "
+        "coefficient) and on vertices of the bumpy sphere (brute-force rays, converged reference); not part of "
+        "prtbake yet. LUT: adaptive 3×3 Gauss–Legendre cubature on the reference's half-vector pieces, "
+        "splitting the cell whose value changes most when it is split, one cell at a time; prtbake's "
+        "`--tolerance` for LUTs is this rule, split in rounds, in float on the device, with a guard on the "
+        "root cells (the study's tables above). Both spend their samples where the "
         "integrand has edges or peaks, which per-item counts cannot do. The quadtree only sees an edge that "
         "crosses a cell between its corners: on the bumpy sphere, occluders smaller than the starting cells "
         "are missed and set the maximum error, so it loses there.")
