@@ -148,6 +148,20 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
 }
 
+// Visibility of a list of rays, one work-item per ray (the visibility quadtree of
+// "--tolerance", host/src/transport_quadtree.cpp): ray r leaves vertex as_int(rays[r].w)
+// in the direction rays[r].xyz of that vertex's frame. out: 1 = unoccluded.
+__kernel void transport_ray_list(int rayCount, __global const float4* rays, __global const float4* origins,
+                                 __global const float4* frames, __global const BvhNode* nodes,
+                                 __global const float4* tris, float tMax, __global uchar* out) {
+  const int r = get_global_id(0);
+  if (r >= rayCount) return;
+  const float4 ray = rays[r];
+  const int vi = as_int(ray.w);
+  const float3 d = sampling_to_world(frames + (size_t)vi * 3, (float4)(ray.xyz, 0.0f));
+  out[r] = bvh_occluded(nodes, tris, origins[vi].xyz, d, tMax) ? 0 : 1;
+}
+
 #else  // BVH_PACKET
 
 #include "bvh_packet.clh"

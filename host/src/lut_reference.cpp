@@ -18,6 +18,7 @@
 #include <cmath>
 #include <thread>
 
+#include "gauss_legendre.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
 
@@ -32,31 +33,8 @@ namespace {
 
 const double kPi = 3.14159265358979323846;
 
-struct Gauss8 {
-  std::array<double, 8> x{}, w{};  // nodes and weights on [0, 1]
-  Gauss8() {
-    const int n = 8;
-    for (int i = 0; i < n; ++i) {
-      double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), pp = 0;
-      for (int it = 0; it < 100; ++it) {
-        double p1 = 1, p2 = 0;
-        for (int j = 1; j <= n; ++j) {
-          const double p3 = p2;
-          p2 = p1;
-          p1 = ((2 * j - 1) * z * p2 - (j - 1) * p3) / j;
-        }
-        pp = n * (z * p1 - p2) / (z * z - 1);
-        const double dz = p1 / pp;
-        z -= dz;
-        if (std::abs(dz) < 1e-16) break;
-      }
-      x[i] = 0.5 * (1 - z);
-      w[i] = 1.0 / ((1 - z * z) * pp * pp);  // 2/((1−z²)p'²) halved for [0, 1]
-    }
-  }
-};
-const Gauss8& gauss8() {
-  static const Gauss8 g;
+const detail::GaussRule& gauss8() {
+  static const detail::GaussRule g = detail::gaussLegendre(8);
   return g;
 }
 

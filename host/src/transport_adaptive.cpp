@@ -1,4 +1,6 @@
-// Adaptive sample counts for the direct term ("--tolerance E"; see transport.h).
+// Adaptive sample counts for the direct term ("--tolerance E"; see transport.h). Shadowed
+// mode: the closed form for vertices that cannot be occluded, the visibility quadtree
+// (transport_quadtree.cpp) for the others. Unshadowed mode:
 //
 // Every vertex takes the points of ONE 2-D Sobol' sequence (sobol.h) with a digital shift
 // drawn from the seed, mapped to the cosine-weighted hemisphere and turned into the
@@ -86,6 +88,10 @@ TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const Tr
     active.push_back(uint32_t(v));
   }
   const auto tKernel = Clock::now();
+  if (visibility) {  // every listed vertex can be occluded
+    quadtreeTransport(rt, setup0, nodes, tris, active, o, r);
+    active.clear();
+  }
   RaySetup setup = setup0;  // frames and origins of the seed; directions per round
   for (int round = 0; !active.empty(); ++round) {
     const int total = n0 << round;                 // samples per vertex after this round

@@ -33,6 +33,11 @@ class DirectRunner {
   float tMax_;
 };
 
+// The shadowed quadtree of "--tolerance" (transport_quadtree.cpp) for `vertices` (each
+// with a normal): fills their coeffs, samplesPerVertex, errorEstimate and stdError, and
+// adds to r.rays and r.verticesAtCap.
+void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl::Buffer tris,
+                       const std::vector<uint32_t>& vertices, const TransportOptions& o, TransportResult& r);
 // The adaptive driver (TransportOptions::tolerance > 0).
 TransportResult computeTransportAdaptive(Runtime& rt, const Mesh& mesh, const TransportOptions& o);
 

@@ -69,7 +69,8 @@ struct TransportOptions {
   std::optional<size_t> vertexCount;
   TransportSampler sampler = TransportSampler::Hammersley;
   // Adaptive sampling ("--tolerance E", unshadowed and shadowed only; 0: off, `samples`
-  // is used). Each vertex takes successive blocks of ONE 2-D Sobol' sequence (a digital
+  // is used). Deterministic for a given seed.
+  // Unshadowed: each vertex takes successive blocks of ONE 2-D Sobol' sequence (a digital
   // shift from the seed; the per-vertex rotation about the normal of the uniform path),
   // doubling its count N per round and keeping every earlier sample; every power-of-two
   // prefix is a (0,m,2)-net, as good as the uniform path's Hammersley set. With
@@ -77,9 +78,14 @@ struct TransportOptions {
   // error falling like 1/N),
   //   err(p) = kTransportErrorFactor · max(d(N), d(N/2)/2),
   // and a vertex stops at the first N ≥ kTransportToleranceMinSamples with err < tolerance
-  // or when doubling would pass toleranceMaxSamples (reported at the cap). Deterministic
-  // for a given seed. In shadowed mode, vertices that cannot be occluded take the closed
-  // form (clampedCosineProjected) and use no samples.
+  // or when doubling would pass toleranceMaxSamples (reported at the cap).
+  // Shadowed: vertices that cannot be occluded take the closed form
+  // (clampedCosineProjected) and no rays; the others a visibility quadtree over the
+  // cosine-weighted square (kTransportRootCells² cells, rays at cell corners, cells whose
+  // corners disagree split in four until kTransportMixedFactor × the mixed cells'
+  // ∫|Y_i| is below tolerance for every coefficient, or until the next level would pass
+  // toleranceMaxSamples rays; the root grid is always traced). Occluders smaller than a
+  // cell can pass between its corners unseen.
   double tolerance = 0;
   int toleranceMaxSamples = 65536;
 };
@@ -89,6 +95,11 @@ struct TransportOptions {
 constexpr double kTransportErrorFactor = 2.0;
 // Fewest samples at which a vertex may stop (and the least --max-samples).
 constexpr int kTransportToleranceMinSamples = 64;
+// The shadowed quadtree: cells per side of the root grid ((16 + 1)·16 + 1 = 273 rays per
+// vertex), and c of its estimate c · Σ_mixed ∫|Y_i|, measured on the open cavity and the
+// bumpy sphere (docs/accuracy.md).
+constexpr int kTransportRootCells = 16;
+constexpr double kTransportMixedFactor = 0.5;
 
 // Orders accepted by the transport product.
 constexpr int kMaxTransportOrder = 8;
@@ -114,8 +125,8 @@ struct TransportResult {
   // computed without visibility rays (shadowed and interreflected modes).
   size_t verticesUnoccludable = 0;
   // Adaptive sampling (TransportOptions::tolerance > 0): samples used per vertex,
-  // histogram[k] = vertices that used 2^k samples, vertices that hit the cap, and the
-  // prefix-difference error estimate (max over coefficients) per vertex, max and mean.
+  // histogram[k] = vertices that used about 2^k samples (rounded in log₂), vertices that
+  // hit the cap, and the error estimate (max over coefficients) per vertex, max and mean.
   std::vector<int> samplesPerVertex;
   std::vector<size_t> samplesHistogram;
   size_t verticesAtCap = 0;
