@@ -304,4 +304,28 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
 }
 
+// Packet form of transport_ray_list: work-item p traces rays p·BVH_PACKET … + BVH_PACKET − 1,
+// which leave one vertex (the host pads each vertex's rays to whole packets).
+__kernel void transport_ray_list_packet(int packetCount, __global const float4* rays, __global const float4* origins,
+                                        __global const float4* frames, __global const BvhNode* nodes,
+                                        __global const float4* tris, float tMax, __global uchar* out) {
+  const int p = get_global_id(0);
+  if (p >= packetCount) return;
+  __global const float4* r = rays + (size_t)p * BVH_PACKET;
+  const int vi = as_int(r[0].w);
+  __global const float4* frame = frames + (size_t)vi * 3;
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  floatP lx, ly, lz;
+  for (int j = 0; j < BVH_PACKET; ++j) {
+    ((float*)&lx)[j] = r[j].x;
+    ((float*)&ly)[j] = r[j].y;
+    ((float*)&lz)[j] = r[j].z;
+  }
+  const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+  const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+  const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+  const intP blocked = bvh_packet_occluded(nodes, tris, origins[vi].xyz, dx, dy, dz, tMax, (intP)(-1));
+  for (int j = 0; j < BVH_PACKET; ++j) out[(size_t)p * BVH_PACKET + j] = ((int*)&blocked)[j] ? 0 : 1;
+}
+
 #endif  // BVH_PACKET

@@ -2,8 +2,7 @@
 // references. Criterion (1), ≥ 95 % of vertices/texels below E, is asserted everywhere.
 // Criterion (2), the adaptive total below the total of the smallest power-of-two uniform
 // count (default sampler) whose maximum error is ≤ the adaptive run's maximum error, is
-// asserted on the sphere and the LUTs, and reported (CHECK_NOFAIL) on the cavity, where it
-// does not hold yet.
+// asserted on the sphere, the open cavity and the LUTs.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -26,12 +25,6 @@ const double kPi = 3.14159265358979323846;
 const double kY0 = 0.28209479177387814;
 // Acceptance (issue 6): at least 95 % of the vertices/texels below the tolerance.
 constexpr double kMinFractionBelow = 0.95;
-// Where criterion (2) does not hold (cavity), a regression bound instead: the adaptive
-// total may not exceed the measured multiple of the uniform total at equal maximum error
-// by more than 25 %. Measured 1.80x; the runs are deterministic, so a change of the
-// estimator or the sequence that costs 25 % more samples fails here.
-constexpr double kRegressionMargin = 1.25;
-constexpr double kCavityOverUniform = 1.80 * kRegressionMargin;
 
 // Per-item error: the largest |x − ref| over the item's values.
 struct Errors {
@@ -139,12 +132,9 @@ TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance
                    << ", estimate max " << r.maxErrorEstimate << ", adaptive samples " << r.totalSamples
                    << ", uniform " << uniform << "/vertex = " << total << ", at cap " << r.verticesAtCap);
   CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
-  // Criterion (2) is not met here yet (measured: adaptive 2.1e6 samples, max error 1.5e-3,
-  // against 1.2e6 for uniform Hammersley at 2048/vertex): the prefix-difference estimate
-  // varies too much from vertex to vertex on this discontinuous (visibility) integrand,
-  // see docs/accuracy.md. Reported, not failed, until the estimator is fixed.
-  CHECK_NOFAIL(double(r.totalSamples) < total);
-  CHECK(double(r.totalSamples) < kCavityOverUniform * total);
+  // The visibility quadtree (measured: 4.55e6 rays, max error 4.8e-4, against 9.45e6 for
+  // uniform Hammersley at 16384/vertex, the first power of two that reaches it).
+  CHECK(double(r.totalSamples) < total);
 }
 
 TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {

@@ -66,12 +66,13 @@ struct Tree {
 // degree order + 1, so the rule's relative error is about ((order + 1) w)^(2n)/(2n)!.
 class CellIntegrator {
  public:
-  explicit CellIntegrator(int order)
-      : order_(order), nc_(order * order), root_(gaussLegendre(std::max(4, order))), fine_(gaussLegendre(2)) {
+  CellIntegrator(int order, uint32_t rootSide)
+      : order_(order), nc_(order * order), rootSide_(rootSide), root_(gaussLegendre(std::max(4, order))),
+        fine_(gaussLegendre(2)) {
     y_.resize(nc_);
   }
   void operator()(const float* frame, const Cell& c, double* sum, double* abs, double scale) {
-    const GaussRule& g_ = c.s == kSide / kTransportRootCells ? root_ : fine_;
+    const GaussRule& g_ = c.s >= rootSide_ ? root_ : fine_;
     const double a = double(c.x) / kSide, b = double(c.x + c.s) / kSide;
     const double t0 = std::asin(std::sqrt(a)), t1 = std::asin(std::sqrt(std::min(b, 1.0)));
     const double v0 = double(c.y) / kSide, dv = double(c.s) / kSide;
@@ -96,6 +97,7 @@ class CellIntegrator {
 
  private:
   int order_, nc_;
+  uint32_t rootSide_;
   GaussRule root_, fine_;
   std::vector<double> y_;
 };
@@ -105,10 +107,22 @@ class CellIntegrator {
 void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl::Buffer tris,
                        const std::vector<uint32_t>& vertices, const TransportOptions& o, TransportResult& r) {
   const int nc = o.order * o.order;
-  const uint32_t root = kSide / kTransportRootCells;
-  CellIntegrator integrate(o.order);
-  cl::Kernel kernel = rt.kernel("transport.cl", "transport_ray_list",
-                                "-DSH_ORDER=" + std::to_string(o.order) + " -DVISIBILITY=1 -DCHANNELS=1 -DBVH_PACKET=0");
+  // Root cells per side: at least kTransportRootCells, and enough that one whole root cell
+  // holds at most kTransportRootFraction · E of any coefficient (|Y_i| ≤ √((2l + 1)/4π),
+  // largest at l = order − 1), so that an occluder missed between the corners of a cell
+  // costs a fraction of E; within the cap.
+  const double yMax = std::sqrt((2.0 * o.order - 1) / (4 * kPi));
+  uint32_t cells = uint32_t(kTransportRootCells);
+  while (cells < kSide / 2 && yMax / (double(cells) * cells) > kTransportRootFraction * o.tolerance &&
+         (2 * cells + 1) * 2 * cells + 1 <= uint32_t(o.toleranceMaxSamples))
+    cells *= 2;
+  const uint32_t root = kSide / cells;
+  CellIntegrator integrate(o.order, root);
+  // Packets of `width` rays of one vertex (o.packetWidth; 0: one ray per work-item).
+  const size_t width = size_t(std::max(1, o.packetWidth));
+  cl::Kernel kernel = rt.kernel("transport.cl", width > 1 ? "transport_ray_list_packet" : "transport_ray_list",
+                                "-DSH_ORDER=" + std::to_string(o.order) + " -DVISIBILITY=1 -DCHANNELS=1 -DBVH_PACKET=" +
+                                    std::to_string(o.packetWidth));
   cl::Buffer origins = rt.upload(setup.origins), frames = rt.upload(setup.frames);
 
   for (size_t first = 0; first < vertices.size(); first += kVertexBatch) {
@@ -131,12 +145,18 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
           rayOwner.emplace_back(uint32_t(t), k);
           ++tr.rays;
         }
+      // Pad to whole packets with copies of the vertex's last ray.
+      while (rayOwner.size() % width) {
+        const float last[4] = {rays[rays.size() - 4], rays[rays.size() - 3], rays[rays.size() - 2], rays.back()};
+        rays.insert(rays.end(), last, last + 4);
+        rayOwner.push_back(rayOwner.back());
+      }
     };
     for (size_t t = 0; t < count; ++t) {
       Tree& tr = trees[t];
       tr.full.assign(nc, 0.0);
-      for (uint32_t i = 0; i < uint32_t(kTransportRootCells); ++i)
-        for (uint32_t j = 0; j < uint32_t(kTransportRootCells); ++j) tr.pending.push_back({i * root, j * root, root});
+      for (uint32_t i = 0; i < cells; ++i)
+        for (uint32_t j = 0; j < cells; ++j) tr.pending.push_back({i * root, j * root, root});
       request(t, tr.pending);
     }
     for (int level = 0; !rays.empty(); ++level) {
@@ -144,7 +164,8 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       std::vector<uint8_t> vis(nr);
       cl::Buffer rb = rt.upload(rays);
       cl::Buffer ob(rt.context(), CL_MEM_WRITE_ONLY, nr);
-      kernel.setArg(0, int(nr));
+      const size_t items = nr / width;
+      kernel.setArg(0, int(items));
       kernel.setArg(1, rb);
       kernel.setArg(2, origins);
       kernel.setArg(3, frames);
@@ -152,10 +173,10 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       kernel.setArg(5, tris);
       kernel.setArg(6, setup.tMax);
       kernel.setArg(7, ob);
-      rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange((nr + kLocalSize - 1) / kLocalSize * kLocalSize),
+      rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange,
+                                      cl::NDRange((items + kLocalSize - 1) / kLocalSize * kLocalSize),
                                       cl::NDRange(kLocalSize));
       rt.queue().enqueueReadBuffer(ob, CL_TRUE, 0, nr, vis.data());
-      r.rays += nr;
       for (size_t k = 0; k < nr; ++k) trees[rayOwner[k].first].vis[rayOwner[k].second] = vis[k];
       rays.clear(), rayOwner.clear();
 
@@ -213,6 +234,7 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       const double sign = tr.occludedForm ? -1 : 1;
       for (int k = 0; k < nc; ++k) r.coeffs[size_t(v) * nc + k] = float(c[k] + sign * (tr.full[k] + tr.mixedSum[k]));
       r.samplesPerVertex[v] = int(tr.rays);
+      r.rays += uint64_t(tr.rays);
       r.stdError[v] = r.errorEstimate[v];
     }
   }

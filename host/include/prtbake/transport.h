@@ -81,7 +81,8 @@ struct TransportOptions {
   // or when doubling would pass toleranceMaxSamples (reported at the cap).
   // Shadowed: vertices that cannot be occluded take the closed form
   // (clampedCosineProjected) and no rays; the others a visibility quadtree over the
-  // cosine-weighted square (kTransportRootCells² cells, rays at cell corners, cells whose
+  // cosine-weighted square (a root grid of at least kTransportRootCells² cells, finer
+  // for smaller E; rays at cell corners, cells whose
   // corners disagree split in four until kTransportMixedFactor × the mixed cells'
   // ∫|Y_i| is below tolerance for every coefficient, or until the next level would pass
   // toleranceMaxSamples rays; the root grid is always traced). Occluders smaller than a
@@ -95,11 +96,15 @@ struct TransportOptions {
 constexpr double kTransportErrorFactor = 2.0;
 // Fewest samples at which a vertex may stop (and the least --max-samples).
 constexpr int kTransportToleranceMinSamples = 64;
-// The shadowed quadtree: cells per side of the root grid ((16 + 1)·16 + 1 = 273 rays per
-// vertex), and c of its estimate c · Σ_mixed ∫|Y_i|, measured on the open cavity and the
-// bumpy sphere (docs/accuracy.md).
+// The shadowed quadtree (see TransportOptions::tolerance): the fewest root cells per side
+// ((16 + 1)·16 + 1 = 273 rays per vertex), doubled while one root cell can hold more than
+// kTransportRootFraction · E of a coefficient, and c of the estimate c · Σ_mixed ∫|Y_i|
+// (1: a mixed cell may be wholly wrong). Measured on the open cavity and the bumpy sphere
+// at E = 2e-2 … 1e-3 (docs/accuracy.md): c = 0.5 leaves small occluders unseen at the
+// bumpy sphere's loose tolerances; with these values every vertex ends below E.
 constexpr int kTransportRootCells = 16;
-constexpr double kTransportMixedFactor = 0.5;
+constexpr double kTransportRootFraction = 0.2;
+constexpr double kTransportMixedFactor = 1.0;
 
 // Orders accepted by the transport product.
 constexpr int kMaxTransportOrder = 8;
