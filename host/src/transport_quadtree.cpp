@@ -21,7 +21,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <unordered_map>
+#include <thread>
 
 #include "gauss_legendre.h"
 #include "prtbake/sh.h"
@@ -36,14 +36,18 @@ constexpr uint32_t kSide = 1u << kDepth;
 constexpr size_t kVertexBatch = 4096;
 constexpr size_t kLocalSize = 16;
 
+// A cell [x, x + s] × [y, y + s] in grid steps (u = grid / kSide) and the visibility of
+// its corners: bit 0 (x, y), bit 1 (x + s, y), bit 2 (x, y + s), bit 3 (x + s, y + s).
 struct Cell {
-  uint32_t x, y, s;  // lower corner and side, in grid steps (u = grid / kSide)
+  uint32_t x, y, s;
+  uint8_t vis;
 };
 
 uint32_t cornerKey(uint32_t x, uint32_t y) {
   if (x == 0 || y == kSide) y = 0;  // the pole is one direction; φ is periodic
   return x * (kSide + 1) + y;
 }
+constexpr uint32_t kPoleKey = 0;
 
 // The local direction of a corner; the horizon (u1 = 1) is lifted by 1e-6 in u1 (1e-3 rad).
 void cornerDirection(uint32_t key, float* d) {
@@ -53,26 +57,33 @@ void cornerDirection(uint32_t key, float* d) {
 }
 
 struct Tree {
-  std::unordered_map<uint32_t, uint8_t> vis;  // corner key → 1 visible
-  std::vector<Cell> pending, mixed;
+  std::vector<Cell> mixed;                       // the mixed cells of the last level
+  std::vector<uint32_t> keys;                    // the new corners of the next level, sorted
+  std::vector<uint8_t> keyVis;                   // their visibility once traced
+  std::vector<float> dirs;                       // their rays: local direction, vertex (int bits)
   std::vector<double> full, mixedSum, mixedAbs;  // per coefficient
   bool occludedForm = false;  // `full` sums the occluded cells (T = U − occluded − ...)
+  bool splitting = false;
+  bool atCap = false;
+  uint8_t poleVis = 0;
   int64_t rays = 0;
+  float estimate = 0;
 };
 
 // Integrals over a cell of Y_i (world frame) and |Y_i|, by an n × n Gauss–Legendre rule
-// in (θ, u2): n = max(4, order) for a root cell, 2 for the smaller cells below it. On a
+// in (θ, u2): n = max(4, order) for a root cell, 2 for the smaller cells below it, 1 (the
+// centre) for a mixed cell, whose value is uncertain by its whole integral anyway. On a
 // cell of width w in θ and 2πw' in φ the integrand is a trigonometric polynomial of
 // degree order + 1, so the rule's relative error is about ((order + 1) w)^(2n)/(2n)!.
 class CellIntegrator {
  public:
   CellIntegrator(int order, uint32_t rootSide)
       : order_(order), nc_(order * order), rootSide_(rootSide), root_(gaussLegendre(std::max(4, order))),
-        fine_(gaussLegendre(2)) {
+        fine_(gaussLegendre(2)), centre_(gaussLegendre(1)) {
     y_.resize(nc_);
   }
   void operator()(const float* frame, const Cell& c, double* sum, double* abs, double scale) {
-    const GaussRule& g_ = c.s >= rootSide_ ? root_ : fine_;
+    const GaussRule& g_ = abs ? centre_ : c.s >= rootSide_ ? root_ : fine_;
     const double a = double(c.x) / kSide, b = double(c.x + c.s) / kSide;
     const double t0 = std::asin(std::sqrt(a)), t1 = std::asin(std::sqrt(std::min(b, 1.0)));
     const double v0 = double(c.y) / kSide, dv = double(c.s) / kSide;
@@ -98,7 +109,7 @@ class CellIntegrator {
  private:
   int order_, nc_;
   uint32_t rootSide_;
-  GaussRule root_, fine_;
+  GaussRule root_, fine_, centre_;
   std::vector<double> y_;
 };
 
@@ -117,50 +128,96 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
          (2 * cells + 1) * 2 * cells + 1 <= uint32_t(o.toleranceMaxSamples))
     cells *= 2;
   const uint32_t root = kSide / cells;
-  CellIntegrator integrate(o.order, root);
   // Packets of `width` rays of one vertex (o.packetWidth; 0: one ray per work-item).
   const size_t width = size_t(std::max(1, o.packetWidth));
   cl::Kernel kernel = rt.kernel("transport.cl", width > 1 ? "transport_ray_list_packet" : "transport_ray_list",
                                 "-DSH_ORDER=" + std::to_string(o.order) + " -DVISIBILITY=1 -DCHANNELS=1 -DBVH_PACKET=" +
                                     std::to_string(o.packetWidth));
   cl::Buffer origins = rt.upload(setup.origins), frames = rt.upload(setup.frames);
+  const unsigned threads = std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
 
   for (size_t first = 0; first < vertices.size(); first += kVertexBatch) {
     const size_t count = std::min(kVertexBatch, vertices.size() - first);
     std::vector<Tree> trees(count);
-    std::vector<float> rays;       // 4 floats per ray: local direction, vertex (as int bits)
-    std::vector<std::pair<uint32_t, uint32_t>> rayOwner;  // (tree, corner key)
-    // Queues the corners of `cells` that tree t has not traced yet.
-    auto request = [&](size_t t, const std::vector<Cell>& cells) {
+    // Runs f(t, integrator) for every tree, spread over the threads (trees are independent).
+    std::vector<CellIntegrator> integrators(threads, CellIntegrator(o.order, root));
+    auto forTrees = [&](auto&& f) {
+      std::vector<std::thread> pool;
+      for (unsigned k = 0; k < threads; ++k)
+        pool.emplace_back([&, k] {
+          for (size_t t = k; t < count; t += threads) f(t, integrators[k]);
+        });
+      for (auto& th : pool) th.join();
+    };
+    // The rays of tree t's pending corners.
+    auto directions = [&](size_t t) {
       Tree& tr = trees[t];
-      for (const Cell& c : cells)
-        for (uint32_t k : {cornerKey(c.x, c.y), cornerKey(c.x + c.s, c.y), cornerKey(c.x, c.y + c.s),
-                           cornerKey(c.x + c.s, c.y + c.s)}) {
-          if (!tr.vis.emplace(k, 0).second) continue;
-          float d[4];
-          cornerDirection(k, d);
-          const int32_t v = int32_t(vertices[first + t]);
-          std::memcpy(&d[3], &v, 4);
-          rays.insert(rays.end(), d, d + 4);
-          rayOwner.emplace_back(uint32_t(t), k);
-          ++tr.rays;
-        }
-      // Pad to whole packets with copies of the vertex's last ray.
-      while (rayOwner.size() % width) {
-        const float last[4] = {rays[rays.size() - 4], rays[rays.size() - 3], rays[rays.size() - 2], rays.back()};
-        rays.insert(rays.end(), last, last + 4);
-        rayOwner.push_back(rayOwner.back());
+      const int32_t v = int32_t(vertices[first + t]);
+      tr.dirs.resize(4 * tr.keys.size());
+      for (size_t i = 0; i < tr.keys.size(); ++i) {
+        cornerDirection(tr.keys[i], &tr.dirs[4 * i]);
+        std::memcpy(&tr.dirs[4 * i + 3], &v, 4);
       }
     };
-    for (size_t t = 0; t < count; ++t) {
+    // Classifies `cells` of tree t: wholly visible or occluded cells are integrated, mixed
+    // ones kept; then the estimate, and the next level's corners unless it stops.
+    auto classify = [&](size_t t, CellIntegrator& integrate, const std::vector<Cell>& cells, bool root) {
       Tree& tr = trees[t];
-      tr.full.assign(nc, 0.0);
-      for (uint32_t i = 0; i < cells; ++i)
-        for (uint32_t j = 0; j < cells; ++j) tr.pending.push_back({i * root, j * root, root});
-      request(t, tr.pending);
-    }
-    for (int level = 0; !rays.empty(); ++level) {
-      const size_t nr = rays.size() / 4;
+      const float* frame = &setup.frames[12 * size_t(vertices[first + t])];
+      if (root) {
+        size_t visible = 0, occluded = 0;
+        for (const Cell& c : cells) visible += c.vis == 15, occluded += c.vis == 0;
+        tr.occludedForm = visible > occluded;
+      }
+      tr.mixed.clear();
+      tr.mixedSum.assign(nc, 0.0), tr.mixedAbs.assign(nc, 0.0);
+      const uint8_t whole = tr.occludedForm ? 0 : 15;
+      for (const Cell& c : cells) {
+        if (c.vis == whole) integrate(frame, c, tr.full.data(), nullptr, 1.0);
+        if (c.vis == 0 || c.vis == 15) continue;
+        tr.mixed.push_back(c);
+        const double f = __builtin_popcount(c.vis) / 4.0;
+        integrate(frame, c, tr.mixedSum.data(), tr.mixedAbs.data(), tr.occludedForm ? 1 - f : f);
+      }
+      double est = 0;
+      for (int k = 0; k < nc; ++k) est = std::max(est, kTransportMixedFactor * tr.mixedAbs[k]);
+      tr.estimate = float(est);
+      tr.splitting = false;
+      if (est < o.tolerance || tr.mixed.empty() || tr.mixed.front().s == 1) return;
+      // The new corners of the split: edge midpoints and centres (the pole is known).
+      tr.keys.clear();
+      for (const Cell& c : tr.mixed) {
+        const uint32_t h = c.s / 2;
+        for (uint32_t k : {cornerKey(c.x + h, c.y), cornerKey(c.x, c.y + h), cornerKey(c.x + h, c.y + h),
+                           cornerKey(c.x + c.s, c.y + h), cornerKey(c.x + h, c.y + c.s)})
+          if (k != kPoleKey) tr.keys.push_back(k);
+      }
+      std::sort(tr.keys.begin(), tr.keys.end());
+      tr.keys.erase(std::unique(tr.keys.begin(), tr.keys.end()), tr.keys.end());
+      if (tr.rays + int64_t(tr.keys.size()) > o.toleranceMaxSamples) {
+        tr.atCap = true;
+        return;
+      }
+      tr.splitting = true;
+      directions(t);
+    };
+    // Traces the pending corners of every splitting tree, padded to whole packets.
+    auto trace = [&] {
+      std::vector<float> rays;
+      std::vector<std::pair<uint32_t, uint32_t>> slot;  // (tree, index in its keys)
+      for (size_t t = 0; t < count; ++t) {
+        Tree& tr = trees[t];
+        if (!tr.splitting || tr.keys.empty()) continue;
+        tr.keyVis.assign(tr.keys.size(), 0);
+        tr.rays += int64_t(tr.keys.size());
+        for (size_t i = 0; i < tr.keys.size() || slot.size() % width; ++i) {
+          const size_t k = std::min(i, tr.keys.size() - 1);  // padding repeats the last ray
+          rays.insert(rays.end(), &tr.dirs[4 * k], &tr.dirs[4 * k + 4]);
+          slot.emplace_back(uint32_t(t), uint32_t(k));
+        }
+      }
+      const size_t nr = slot.size();
+      if (nr == 0) return false;
       std::vector<uint8_t> vis(nr);
       cl::Buffer rb = rt.upload(rays);
       cl::Buffer ob(rt.context(), CL_MEM_WRITE_ONLY, nr);
@@ -177,53 +234,64 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
                                       cl::NDRange((items + kLocalSize - 1) / kLocalSize * kLocalSize),
                                       cl::NDRange(kLocalSize));
       rt.queue().enqueueReadBuffer(ob, CL_TRUE, 0, nr, vis.data());
-      for (size_t k = 0; k < nr; ++k) trees[rayOwner[k].first].vis[rayOwner[k].second] = vis[k];
-      rays.clear(), rayOwner.clear();
+      for (size_t k = 0; k < nr; ++k) trees[slot[k].first].keyVis[slot[k].second] = vis[k];
+      return true;
+    };
 
-      for (size_t t = 0; t < count; ++t) {
+    // The root grid: its corners (the pole once, u2 = 1 as u2 = 0) are the first level's keys.
+    forTrees([&](size_t t, CellIntegrator&) {
+      Tree& tr = trees[t];
+      tr.full.assign(nc, 0.0);
+      tr.keys.clear();
+      for (uint32_t i = 0; i <= cells; ++i)
+        for (uint32_t j = 0; j < cells; ++j) tr.keys.push_back(cornerKey(i * root, j * root));
+      std::sort(tr.keys.begin(), tr.keys.end());
+      tr.keys.erase(std::unique(tr.keys.begin(), tr.keys.end()), tr.keys.end());
+      tr.splitting = true;
+      directions(t);
+    });
+    trace();
+    forTrees([&](size_t t, CellIntegrator& integrate) {
+      Tree& tr = trees[t];
+      auto vis = [&](uint32_t x, uint32_t y) {
+        return tr.keyVis[size_t(std::lower_bound(tr.keys.begin(), tr.keys.end(), cornerKey(x, y)) - tr.keys.begin())];
+      };
+      tr.poleVis = vis(0, 0);
+      std::vector<Cell> rootCells;
+      for (uint32_t i = 0; i < cells; ++i)
+        for (uint32_t j = 0; j < cells; ++j) {
+          const uint32_t x = i * root, y = j * root;
+          const uint8_t m = uint8_t(vis(x, y) | vis(x + root, y) << 1 | vis(x, y + root) << 2 | vis(x + root, y + root) << 3);
+          rootCells.push_back({x, y, root, m});
+        }
+      classify(t, integrate, rootCells, true);
+    });
+    // Levels: split every mixed cell of every splitting tree.
+    while (trace()) {
+      forTrees([&](size_t t, CellIntegrator& integrate) {
         Tree& tr = trees[t];
-        if (tr.pending.empty()) continue;
-        const float* frame = &setup.frames[12 * size_t(vertices[first + t])];
-        auto visible = [&](uint32_t x, uint32_t y) { return int(tr.vis.at(cornerKey(x, y))); };
-        std::vector<Cell> vis4, occ4;
-        for (const Cell& c : tr.pending) {
-          const int v = visible(c.x, c.y) + visible(c.x + c.s, c.y) + visible(c.x, c.y + c.s) +
-                        visible(c.x + c.s, c.y + c.s);
-          (v == 4 ? vis4 : v == 0 ? occ4 : tr.mixed).push_back(c);
-        }
-        tr.pending.clear();
-        if (level == 0) tr.occludedForm = vis4.size() > occ4.size();
-        for (const Cell& c : tr.occludedForm ? occ4 : vis4) integrate(frame, c, tr.full.data(), nullptr, 1.0);
-        // The mixed cells: their estimate and the error bound.
-        tr.mixedSum.assign(nc, 0.0), tr.mixedAbs.assign(nc, 0.0);
-        for (const Cell& c : tr.mixed) {
-          const int v = visible(c.x, c.y) + visible(c.x + c.s, c.y) + visible(c.x, c.y + c.s) +
-                        visible(c.x + c.s, c.y + c.s);
-          const double f = v / 4.0;
-          integrate(frame, c, tr.mixedSum.data(), tr.mixedAbs.data(), tr.occludedForm ? 1 - f : f);
-        }
-        double est = 0;
-        for (int k = 0; k < nc; ++k) est = std::max(est, kTransportMixedFactor * tr.mixedAbs[k]);
-        r.errorEstimate[vertices[first + t]] = float(est);
-        if (est < o.tolerance || tr.mixed.empty() || tr.mixed.front().s == 1) continue;
-        // Split every mixed cell, if the new corners fit under the cap.
+        if (!tr.splitting) return;
+        auto vis = [&](uint32_t x, uint32_t y) -> uint8_t {
+          const uint32_t k = cornerKey(x, y);
+          if (k == kPoleKey) return tr.poleVis;
+          return tr.keyVis[size_t(std::lower_bound(tr.keys.begin(), tr.keys.end(), k) - tr.keys.begin())];
+        };
         std::vector<Cell> kids;
+        kids.reserve(4 * tr.mixed.size());
         for (const Cell& c : tr.mixed) {
           const uint32_t h = c.s / 2;
-          for (uint32_t q = 0; q < 4; ++q) kids.push_back({c.x + (q & 1) * h, c.y + (q >> 1) * h, h});
+          // The 3 × 3 points of the split, row by row from (x, y).
+          const uint8_t p[9] = {uint8_t(c.vis & 1), vis(c.x + h, c.y), uint8_t(c.vis >> 1 & 1),
+                                vis(c.x, c.y + h), vis(c.x + h, c.y + h), vis(c.x + c.s, c.y + h),
+                                uint8_t(c.vis >> 2 & 1), vis(c.x + h, c.y + c.s), uint8_t(c.vis >> 3 & 1)};
+          for (uint32_t q = 0; q < 4; ++q) {
+            const uint32_t i = q & 1, j = q >> 1, b = 3 * j + i;
+            const uint8_t m = uint8_t(p[b] | p[b + 1] << 1 | p[b + 3] << 2 | p[b + 4] << 3);
+            kids.push_back({c.x + i * h, c.y + j * h, h, m});
+          }
         }
-        size_t fresh = 0;
-        for (const Cell& c : kids)
-          for (uint32_t k : {cornerKey(c.x + c.s, c.y), cornerKey(c.x, c.y + c.s), cornerKey(c.x + c.s, c.y + c.s)})
-            fresh += !tr.vis.count(k);
-        if (tr.rays + int64_t(fresh) > o.toleranceMaxSamples) {
-          ++r.verticesAtCap;
-          continue;
-        }
-        tr.mixed.clear();
-        tr.pending = kids;
-        request(t, tr.pending);
-      }
+        classify(t, integrate, kids, false);
+      });
     }
     for (size_t t = 0; t < count; ++t) {
       const Tree& tr = trees[t];
@@ -234,8 +302,9 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       const double sign = tr.occludedForm ? -1 : 1;
       for (int k = 0; k < nc; ++k) r.coeffs[size_t(v) * nc + k] = float(c[k] + sign * (tr.full[k] + tr.mixedSum[k]));
       r.samplesPerVertex[v] = int(tr.rays);
+      r.errorEstimate[v] = r.stdError[v] = tr.estimate;
       r.rays += uint64_t(tr.rays);
-      r.stdError[v] = r.errorEstimate[v];
+      r.verticesAtCap += tr.atCap;
     }
   }
 }
