@@ -137,6 +137,43 @@ TEST_CASE("Tolerance: shadowed open cavity against its closed form", "[tolerance
   CHECK(double(r.totalSamples) < total);
 }
 
+// Every coefficient of every vertex of a mesh with many small occluders, against a
+// converged uniform run (an independent path: the direct kernel, Hammersley points).
+TEST_CASE("Tolerance: shadowed quadtree on the bumpy sphere for every coefficient", "[tolerance][transport]") {
+  constexpr double kTolerance = 5e-3;
+  // The reference: 65536 directions per vertex; two seeds differ by ~1e-4 (its own error,
+  // measured), 50x below E.
+  constexpr int kReferenceSamples = 65536;
+  const Mesh mesh = makeBumpySphere(600);
+  TransportOptions o;
+  o.mode = TransportMode::Shadowed;
+  o.samples = kReferenceSamples;
+  const TransportResult ref = computeTransport(test::runtime(), mesh, o);
+  o.tolerance = kTolerance;
+  const TransportResult r = computeTransport(test::runtime(), mesh, o);
+  const int nc = o.order * o.order;
+  Errors e;
+  for (size_t v = 0; v < mesh.vertexCount(); ++v) {
+    double worst = 0;
+    for (int k = 0; k < nc; ++k) worst = std::max(worst, std::abs(double(r.vertex(v)[k]) - ref.vertex(v)[k]));
+    e.perItem.push_back(worst);
+  }
+  WARN("bumpy E=" << kTolerance << ": below E " << e.fractionBelow(kTolerance) << ", max error " << e.max()
+                  << ", estimate max " << r.maxErrorEstimate << ", rays " << r.totalSamples << ", at cap "
+                  << r.verticesAtCap << ", unoccludable " << r.verticesUnoccludable);
+  CHECK(e.fractionBelow(kTolerance) >= kMinFractionBelow);
+  CHECK(r.rays == r.totalSamples);
+  // Deterministic (the trees run on several host threads).
+  const TransportResult again = computeTransport(test::runtime(), mesh, o);
+  CHECK(again.coeffs == r.coeffs);
+  CHECK(again.samplesPerVertex == r.samplesPerVertex);
+  // The cap: no vertex traces more than it (the root grid, 16² cells, fits under 300).
+  o.toleranceMaxSamples = 300;
+  const TransportResult capped = computeTransport(test::runtime(), mesh, o);
+  CHECK(capped.verticesAtCap > 0);
+  CHECK(*std::max_element(capped.samplesPerVertex.begin(), capped.samplesPerVertex.end()) <= 300);
+}
+
 TEST_CASE("Tolerance: LUT against the double reference", "[tolerance][lut]") {
   // GGX and Beckmann; cloth at a looser E. Samples are integrand evaluations: the
   // cubature's, and for the uniform table one per sample and integrand (a cloth table's
