@@ -160,6 +160,9 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
   std::vector<Case> cases;
   cases.push_back({"sphere-unoccluded", makeUvSphere(1.0, 24, 48), TransportMode::Shadowed});
   cases.push_back({"bumpy-shadowed", makeBumpySphere(2000), TransportMode::Shadowed});
+  // The open cavity of tests/test_tolerance.cpp (every vertex occludable, one smooth edge).
+  cases.push_back({"cavity-shadowed", makeOpenSphereCavity(1.0, 3.14159265358979323846 / 3, 12, 48),
+                   TransportMode::Shadowed});
   cases.push_back({"bumpy-interreflected", makeBumpySphere(2000), TransportMode::Interreflected});
   for (const Case& c : cases) {
     const int order = 3, nc = order * order;

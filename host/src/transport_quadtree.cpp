@@ -3,21 +3,24 @@
 // With the cosine-weighted map of the uniform path, u ∈ [0, 1]² → ω(u) in the vertex's
 // frame (u1 = sin²θ, φ = 2π u2; du = cosθ/π dω), the direct term is
 //   T_i = ∫ V(ω(u)) Y_i(ω(u)) du.
-// The square starts as kTransportRootCells² cells on a grid of 2^kDepth steps. A ray is
-// traced at every cell corner (corners are shared: each is traced once; the u1 = 0 edge is
-// one direction, the normal, and u2 = 1 is u2 = 0). A cell whose four corners agree counts
-// as wholly visible or occluded; a mixed cell contributes f·I_c, f its fraction of visible
-// corners and I_c = ∫_cell Y_i du, and its error is at most I_c's size, so
+// The square starts as a root grid (at least kTransportRootCells² cells, refined for small
+// E) on a grid of 2^kDepth steps. A ray is traced at every cell corner (corners are
+// shared: each is traced once; the u1 = 0 edge is one direction, the normal, and u2 = 1 is
+// u2 = 0). A cell whose four corners agree counts as wholly visible or occluded; a mixed
+// cell contributes f·I_c, f its fraction of visible corners and I_c = ∫_cell Y_i du, and
+// it may be wrong by all of I_c, so
 //   est = max_i c · Σ_mixed ∫_cell |Y_i| du   (c = kTransportMixedFactor).
-// While est ≥ E, every mixed cell is split in four (the new corners are traced in one
-// launch for all vertices of a batch: kernels/transport.cl, transport_ray_list). The
-// cell integrals are Gauss–Legendre quadratures in (θ, u2) on the host in double: in θ
-// the integrand is a trigonometric polynomial, smooth at the pole and the horizon where it
-// is not in u1. The visible part is summed directly, or, where most root cells are
-// visible, as the closed-form unshadowed term (clampedCosineProjected) minus the
-// occluded part, whichever has fewer cells. Samples are rays. A cell whose corners
-// agree can still hide an occluder smaller than itself: on meshes with small occluders
-// the estimate misses them (docs/accuracy.md measures the bumpy sphere).
+// While est ≥ E, every mixed cell is split in four; the new corners (edge midpoints and
+// centres, deduplicated per vertex by sorting) of all vertices of a batch are traced in
+// one launch (kernels/transport.cl, transport_ray_list[_packet]). The cell integrals are
+// Gauss–Legendre quadratures in (θ, u2) on the host in double: in θ the integrand is a
+// trigonometric polynomial, smooth at the pole and the horizon where it is not in u1. The
+// visible part is summed directly, or, where most root cells are visible, as the
+// closed-form unshadowed term (clampedCosineProjected) minus the occluded part. Vertices
+// are independent: the host work is spread over threads, and the result does not depend
+// on their number. Samples are rays. A cell whose corners agree can still hide an occluder
+// smaller than itself; the root grid is refined so that one root cell holds at most
+// kTransportRootFraction · E of any coefficient.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -33,7 +36,10 @@ namespace {
 const double kPi = 3.14159265358979323846;
 constexpr int kDepth = 14;
 constexpr uint32_t kSide = 1u << kDepth;
-constexpr size_t kVertexBatch = 4096;
+// Vertices per batch: at most 4096, and few enough that a batch whose every vertex reaches
+// the cap (about 40 bytes of keys, directions and cells per ray) stays within 1 GiB.
+constexpr size_t kMaxVertexBatch = 4096;
+constexpr size_t kBatchBytes = size_t(1) << 30;
 constexpr size_t kLocalSize = 16;
 
 // A cell [x, x + s] × [y, y + s] in grid steps (u = grid / kSide) and the visibility of
@@ -136,8 +142,9 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
   cl::Buffer origins = rt.upload(setup.origins), frames = rt.upload(setup.frames);
   const unsigned threads = std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
 
-  for (size_t first = 0; first < vertices.size(); first += kVertexBatch) {
-    const size_t count = std::min(kVertexBatch, vertices.size() - first);
+  const size_t batch = std::clamp(kBatchBytes / (40 * size_t(o.toleranceMaxSamples)), size_t(1), kMaxVertexBatch);
+  for (size_t first = 0; first < vertices.size(); first += batch) {
+    const size_t count = std::min(batch, vertices.size() - first);
     std::vector<Tree> trees(count);
     // Runs f(t, integrator) for every tree, spread over the threads (trees are independent).
     std::vector<CellIntegrator> integrators(threads, CellIntegrator(o.order, root));
