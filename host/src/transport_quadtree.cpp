@@ -24,10 +24,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <thread>
 
 #include "gauss_legendre.h"
 #include "prtbake/sh.h"
+#include "prtbake/sh_rotate.h"
 #include "transport_direct.h"
 
 namespace prtbake::detail {
@@ -76,48 +78,81 @@ struct Tree {
   float estimate = 0;
 };
 
-// Integrals over a cell of Y_i (world frame) and |Y_i|, by an n × n Gauss–Legendre rule
-// in (θ, u2): n = max(4, order) for a root cell, 2 for the smaller cells below it, 1 (the
-// centre) for a mixed cell, whose value is uncertain by its whole integral anyway. On a
-// cell of width w in θ and 2πw' in φ the integrand is a trigonometric polynomial of
-// degree order + 1, so the rule's relative error is about ((order + 1) w)^(2n)/(2n)!.
-class CellIntegrator {
+// Integrals of the local-frame SH over cells. In the vertex's frame Y_j(θ, φ) = A_j(θ) B_j(φ),
+// B = cos mφ (m > 0), sin |m|φ (m < 0), 1 (m = 0), and A_{l,−m} = A_{l,m} (both √2 K P_l^|m|
+// with the Condon–Shortley phase): A_j(θ) = Y_{l,|m|}(θ, φ = 0). So a cell's integral is
+//   I_j = Θ_j(row) · Φ_m(column),  Θ_j = ∫ A_j(θ) 2 sinθ cosθ dθ (du1 = 2 sinθ cosθ dθ),
+// Φ_m = ∫ B_m(2π u2) du2 in closed form, and Θ by Gauss–Legendre in θ, where A is a
+// trigonometric polynomial (smooth at the pole and the horizon, where it is not in u1):
+// kThetaNodes nodes over a row of width w ≤ 0.26 rad give a relative error of about
+// ((order + 1) w/2)^(2n)/(2n)!, below 1e-12 to order 8. Rows and columns depend on the
+// level alone, so the tables serve every vertex; the world coefficients are the local
+// ones rotated once per vertex (shRotationExact).
+class CellTables {
  public:
-  CellIntegrator(int order, uint32_t rootSide)
-      : order_(order), nc_(order * order), rootSide_(rootSide), root_(gaussLegendre(std::max(4, order))),
-        fine_(gaussLegendre(2)), centre_(gaussLegendre(1)) {
-    y_.resize(nc_);
+  explicit CellTables(int order) : order_(order), nc_(order * order), g_(gaussLegendre(kThetaNodes)) {
+    for (int l = 0; l < order; ++l)
+      for (int m = -l; m <= l; ++m) mIndex_.push_back(m + order - 1);
   }
-  void operator()(const float* frame, const Cell& c, double* sum, double* abs, double scale) {
-    const GaussRule& g_ = abs ? centre_ : c.s >= rootSide_ ? root_ : fine_;
-    const double a = double(c.x) / kSide, b = double(c.x + c.s) / kSide;
-    const double t0 = std::asin(std::sqrt(a)), t1 = std::asin(std::sqrt(std::min(b, 1.0)));
-    const double v0 = double(c.y) / kSide, dv = double(c.s) / kSide;
-    const int n = int(g_.x.size());
-    for (int i = 0; i < n; ++i) {
-      const double th = t0 + (t1 - t0) * g_.x[i], st = std::sin(th), ct = std::cos(th);
-      const double wi = (t1 - t0) * g_.w[i] * 2 * st * ct;  // du1 = 2 sinθ cosθ dθ
-      for (int j = 0; j < n; ++j) {
-        const double phi = 2 * kPi * (v0 + dv * g_.x[j]);
-        const double lx = st * std::cos(phi), ly = st * std::sin(phi), lz = ct;
-        double w[3];
-        for (int k = 0; k < 3; ++k) w[k] = frame[k] * lx + frame[4 + k] * ly + frame[8 + k] * lz;
-        shEval(order_, w[0], w[1], w[2], y_.data());
-        const double wt = wi * dv * g_.w[j];
-        for (int k = 0; k < nc_; ++k) {
-          sum[k] += scale * wt * y_[k];
-          if (abs) abs[k] += wt * std::abs(y_[k]);
-        }
+  // Tabulates the rows and columns of cells of side s (not thread-safe: call between levels).
+  void prepare(uint32_t s) {
+    if (levels_.count(s)) return;
+    Level& lv = levels_[s];
+    const uint32_t n = kSide / s;
+    const int nm = 2 * order_ - 1;
+    lv.theta.assign(size_t(n) * nc_, 0.0);
+    lv.phi.assign(size_t(n) * nm, 0.0);
+    std::vector<double> y(nc_);
+    for (uint32_t r = 0; r < n; ++r) {
+      const double t0 = std::asin(std::sqrt(double(r) / n)), t1 = std::asin(std::sqrt(double(r + 1) / n));
+      double* th = &lv.theta[size_t(r) * nc_];
+      for (size_t i = 0; i < g_.x.size(); ++i) {
+        const double t = t0 + (t1 - t0) * g_.x[i], st = std::sin(t), ct = std::cos(t);
+        shEval(order_, st, 0, ct, y.data());
+        const double w = (t1 - t0) * g_.w[i] * 2 * st * ct;
+        for (int l = 0, j = 0; l < order_; ++l)
+          for (int m = -l; m <= l; ++m, ++j) th[j] += w * y[size_t(l * (l + 1) + std::abs(m))];
+      }
+      double* ph = &lv.phi[size_t(r) * nm];
+      const double c = double(r) / n, d = double(r + 1) / n;
+      for (int m = -(order_ - 1); m < order_; ++m) {
+        const double k = 2 * kPi * std::abs(m);
+        ph[m + order_ - 1] = m == 0 ? d - c
+                             : m > 0 ? (std::sin(k * d) - std::sin(k * c)) / k
+                                     : (std::cos(k * c) - std::cos(k * d)) / k;
       }
     }
   }
+  // sum_j += scale · ∫_cell Y_j du (local frame).
+  void add(const Cell& c, double scale, double* sum) const {
+    const Level& lv = levels_.at(c.s);
+    const double* th = &lv.theta[size_t(c.x / c.s) * nc_];
+    const double* ph = &lv.phi[size_t(c.y / c.s) * (2 * order_ - 1)];
+    for (int j = 0; j < nc_; ++j) sum[j] += scale * th[j] * ph[mIndex_[j]];
+  }
 
  private:
+  static constexpr int kThetaNodes = 8;
+  struct Level {
+    std::vector<double> theta, phi;  // rows × nc, columns × (2 order − 1)
+  };
   int order_, nc_;
-  uint32_t rootSide_;
-  GaussRule root_, fine_, centre_;
-  std::vector<double> y_;
+  GaussRule g_;
+  std::vector<int> mIndex_;
+  std::map<uint32_t, Level> levels_;
 };
+
+// ∫_cell |Y_i| du in the world frame by the value at the cell's centre (for the estimate
+// of a mixed cell, whose own value is uncertain by its whole integral anyway).
+void addCentreAbs(int order, const float* frame, const Cell& c, double* abs, std::vector<double>& y) {
+  const double u1 = (c.x + 0.5 * c.s) / kSide, phi = 2 * kPi * (c.y + 0.5 * c.s) / kSide;
+  const double st = std::sqrt(u1), lx = st * std::cos(phi), ly = st * std::sin(phi), lz = std::sqrt(1 - u1);
+  double w[3];
+  for (int k = 0; k < 3; ++k) w[k] = frame[k] * lx + frame[4 + k] * ly + frame[8 + k] * lz;
+  shEval(order, w[0], w[1], w[2], y.data());
+  const double area = double(c.s) * c.s / (double(kSide) * kSide);
+  for (size_t k = 0; k < y.size(); ++k) abs[k] += area * std::abs(y[k]);
+}
 
 }  // namespace
 
@@ -134,6 +169,9 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
          (2 * cells + 1) * 2 * cells + 1 <= uint32_t(o.toleranceMaxSamples))
     cells *= 2;
   const uint32_t root = kSide / cells;
+  CellTables tables(o.order);
+  tables.prepare(root);
+  const std::vector<double> unshadowedLocal = clampedCosineProjected(o.order, 0, 0, 1);
   // Packets of `width` rays of one vertex (o.packetWidth; 0: one ray per work-item).
   const size_t width = size_t(std::max(1, o.packetWidth));
   cl::Kernel kernel = rt.kernel("transport.cl", width > 1 ? "transport_ray_list_packet" : "transport_ray_list",
@@ -147,12 +185,12 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
     const size_t count = std::min(batch, vertices.size() - first);
     std::vector<Tree> trees(count);
     // Runs f(t, integrator) for every tree, spread over the threads (trees are independent).
-    std::vector<CellIntegrator> integrators(threads, CellIntegrator(o.order, root));
+    std::vector<std::vector<double>> scratch(threads, std::vector<double>(nc));
     auto forTrees = [&](auto&& f) {
       std::vector<std::thread> pool;
       for (unsigned k = 0; k < threads; ++k)
         pool.emplace_back([&, k] {
-          for (size_t t = k; t < count; t += threads) f(t, integrators[k]);
+          for (size_t t = k; t < count; t += threads) f(t, scratch[k]);
         });
       for (auto& th : pool) th.join();
     };
@@ -168,7 +206,7 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
     };
     // Classifies `cells` of tree t: wholly visible or occluded cells are integrated, mixed
     // ones kept; then the estimate, and the next level's corners unless it stops.
-    auto classify = [&](size_t t, CellIntegrator& integrate, const std::vector<Cell>& cells, bool root) {
+    auto classify = [&](size_t t, std::vector<double>& y, const std::vector<Cell>& cells, bool root) {
       Tree& tr = trees[t];
       const float* frame = &setup.frames[12 * size_t(vertices[first + t])];
       if (root) {
@@ -180,11 +218,12 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       tr.mixedSum.assign(nc, 0.0), tr.mixedAbs.assign(nc, 0.0);
       const uint8_t whole = tr.occludedForm ? 0 : 15;
       for (const Cell& c : cells) {
-        if (c.vis == whole) integrate(frame, c, tr.full.data(), nullptr, 1.0);
+        if (c.vis == whole) tables.add(c, 1.0, tr.full.data());
         if (c.vis == 0 || c.vis == 15) continue;
         tr.mixed.push_back(c);
         const double f = __builtin_popcount(c.vis) / 4.0;
-        integrate(frame, c, tr.mixedSum.data(), tr.mixedAbs.data(), tr.occludedForm ? 1 - f : f);
+        tables.add(c, tr.occludedForm ? 1 - f : f, tr.mixedSum.data());
+        addCentreAbs(o.order, frame, c, tr.mixedAbs.data(), y);
       }
       double est = 0;
       for (int k = 0; k < nc; ++k) est = std::max(est, kTransportMixedFactor * tr.mixedAbs[k]);
@@ -246,7 +285,7 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
     };
 
     // The root grid: its corners (the pole once, u2 = 1 as u2 = 0) are the first level's keys.
-    forTrees([&](size_t t, CellIntegrator&) {
+    forTrees([&](size_t t, std::vector<double>&) {
       Tree& tr = trees[t];
       tr.full.assign(nc, 0.0);
       tr.keys.clear();
@@ -258,7 +297,8 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       directions(t);
     });
     trace();
-    forTrees([&](size_t t, CellIntegrator& integrate) {
+    uint32_t levelSide = root;
+    forTrees([&](size_t t, std::vector<double>& y) {
       Tree& tr = trees[t];
       auto vis = [&](uint32_t x, uint32_t y) {
         return tr.keyVis[size_t(std::lower_bound(tr.keys.begin(), tr.keys.end(), cornerKey(x, y)) - tr.keys.begin())];
@@ -271,11 +311,12 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
           const uint8_t m = uint8_t(vis(x, y) | vis(x + root, y) << 1 | vis(x, y + root) << 2 | vis(x + root, y + root) << 3);
           rootCells.push_back({x, y, root, m});
         }
-      classify(t, integrate, rootCells, true);
+      classify(t, y, rootCells, true);
     });
     // Levels: split every mixed cell of every splitting tree.
     while (trace()) {
-      forTrees([&](size_t t, CellIntegrator& integrate) {
+      tables.prepare(levelSide /= 2);
+      forTrees([&](size_t t, std::vector<double>& shValues) {
         Tree& tr = trees[t];
         if (!tr.splitting) return;
         auto vis = [&](uint32_t x, uint32_t y) -> uint8_t {
@@ -297,17 +338,30 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
             kids.push_back({c.x + i * h, c.y + j * h, h, m});
           }
         }
-        classify(t, integrate, kids, false);
+        classify(t, shValues, kids, false);
       });
     }
     for (size_t t = 0; t < count; ++t) {
       const Tree& tr = trees[t];
       const uint32_t v = vertices[first + t];
-      const float* n = &setup.frames[12 * size_t(v) + 8];
+      // Local coefficients, then rotated by the frame R = [t b n] (local → world).
       std::vector<double> c(nc, 0.0);
-      if (tr.occludedForm) c = clampedCosineProjected(o.order, n[0], n[1], n[2]);
+      if (tr.occludedForm) c = unshadowedLocal;
       const double sign = tr.occludedForm ? -1 : 1;
-      for (int k = 0; k < nc; ++k) r.coeffs[size_t(v) * nc + k] = float(c[k] + sign * (tr.full[k] + tr.mixedSum[k]));
+      for (int k = 0; k < nc; ++k) c[k] += sign * (tr.full[k] + tr.mixedSum[k]);
+      const float* f = &setup.frames[12 * size_t(v)];
+      Rotation rot;
+      for (int row = 0; row < 3; ++row)
+        for (int col = 0; col < 3; ++col) rot.m[size_t(3 * row + col)] = f[4 * col + row];
+      const ShRotationBlocks m = shRotationExact(rot, o.order);
+      for (int l = 0; l < o.order; ++l) {
+        const int w = 2 * l + 1;
+        for (int i = 0; i < w; ++i) {
+          double acc = 0;
+          for (int j = 0; j < w; ++j) acc += m[size_t(l)][size_t(i * w + j)] * c[size_t(l * l + j)];
+          r.coeffs[size_t(v) * nc + l * l + i] = float(acc);
+        }
+      }
       r.samplesPerVertex[v] = int(tr.rays);
       r.errorEstimate[v] = r.stdError[v] = tr.estimate;
       r.rays += uint64_t(tr.rays);
