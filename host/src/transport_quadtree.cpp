@@ -56,6 +56,10 @@ uint32_t cornerKey(uint32_t x, uint32_t y) {
   return x * (kSide + 1) + y;
 }
 constexpr uint32_t kPoleKey = 0;
+constexpr uint32_t kPoleSlot = ~0u;
+// The new points of a split cell, in half sides from its corner (x, y): the bottom, left,
+// centre, right and top midpoints (the 3 × 3 points minus the four corners).
+constexpr uint32_t kSplitPoints[5][2] = {{1, 0}, {0, 1}, {1, 1}, {2, 1}, {1, 2}};
 
 // The local direction of a corner; the horizon (u1 = 1) is lifted by 1e-6 in u1 (1e-3 rad).
 void cornerDirection(uint32_t key, float* d) {
@@ -68,6 +72,7 @@ struct Tree {
   std::vector<Cell> mixed;                       // the mixed cells of the last level
   std::vector<uint32_t> keys;                    // the new corners of the next level, sorted
   std::vector<uint8_t> keyVis;                   // their visibility once traced
+  std::vector<uint32_t> slotKey;                 // mixed cell i's new point q: index in keys (5 i + q)
   std::vector<float> dirs;                       // their rays: local direction, vertex (int bits)
   std::vector<double> full, mixedSum, mixedAbs;  // per coefficient
   bool occludedForm = false;  // `full` sums the occluded cells (T = U − occluded − ...)
@@ -230,16 +235,26 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       tr.estimate = float(est);
       tr.splitting = false;
       if (est < o.tolerance || tr.mixed.empty() || tr.mixed.front().s == 1) return;
-      // The new corners of the split: edge midpoints and centres (the pole is known).
-      tr.keys.clear();
-      for (const Cell& c : tr.mixed) {
-        const uint32_t h = c.s / 2;
-        for (uint32_t k : {cornerKey(c.x + h, c.y), cornerKey(c.x, c.y + h), cornerKey(c.x + h, c.y + h),
-                           cornerKey(c.x + c.s, c.y + h), cornerKey(c.x + h, c.y + c.s)})
-          if (k != kPoleKey) tr.keys.push_back(k);
+      // The new points of the split (kSplitPoints per mixed cell), deduplicated by sorting
+      // (key, slot) pairs; each slot keeps the index of its key (the pole is known).
+      std::vector<uint64_t> tagged;
+      tagged.reserve(5 * tr.mixed.size());
+      for (size_t i = 0; i < tr.mixed.size(); ++i) {
+        const Cell& c = tr.mixed[i];
+        for (uint32_t q = 0; q < 5; ++q) {
+          const uint32_t px = c.x + kSplitPoints[q][0] * c.s / 2, py = c.y + kSplitPoints[q][1] * c.s / 2;
+          tagged.push_back(uint64_t(cornerKey(px, py)) << 32 | (5 * i + q));
+        }
       }
-      std::sort(tr.keys.begin(), tr.keys.end());
-      tr.keys.erase(std::unique(tr.keys.begin(), tr.keys.end()), tr.keys.end());
+      std::sort(tagged.begin(), tagged.end());
+      tr.keys.clear();
+      tr.slotKey.assign(tagged.size(), kPoleSlot);
+      for (uint64_t g : tagged) {
+        const uint32_t k = uint32_t(g >> 32);
+        if (k == kPoleKey) continue;
+        if (tr.keys.empty() || tr.keys.back() != k) tr.keys.push_back(k);
+        tr.slotKey[g & 0xffffffffu] = uint32_t(tr.keys.size() - 1);
+      }
       if (tr.rays + int64_t(tr.keys.size()) > o.toleranceMaxSamples) {
         tr.atCap = true;
         return;
@@ -300,8 +315,10 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
     uint32_t levelSide = root;
     forTrees([&](size_t t, std::vector<double>& y) {
       Tree& tr = trees[t];
+      // The sorted root keys: the pole, then row i ≥ 1 (u1 = i/cells) column j at 1 + (i − 1)·cells + j.
       auto vis = [&](uint32_t x, uint32_t y) {
-        return tr.keyVis[size_t(std::lower_bound(tr.keys.begin(), tr.keys.end(), cornerKey(x, y)) - tr.keys.begin())];
+        const uint32_t i = x / root, j = (y / root) % cells;
+        return tr.keyVis[i == 0 ? 0 : 1 + size_t(i - 1) * cells + j];
       };
       tr.poleVis = vis(0, 0);
       std::vector<Cell> rootCells;
@@ -319,19 +336,20 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
       forTrees([&](size_t t, std::vector<double>& shValues) {
         Tree& tr = trees[t];
         if (!tr.splitting) return;
-        auto vis = [&](uint32_t x, uint32_t y) -> uint8_t {
-          const uint32_t k = cornerKey(x, y);
-          if (k == kPoleKey) return tr.poleVis;
-          return tr.keyVis[size_t(std::lower_bound(tr.keys.begin(), tr.keys.end(), k) - tr.keys.begin())];
+        auto vis = [&](size_t slot) -> uint8_t {
+          const uint32_t k = tr.slotKey[slot];
+          return k == kPoleSlot ? tr.poleVis : tr.keyVis[k];
         };
         std::vector<Cell> kids;
         kids.reserve(4 * tr.mixed.size());
-        for (const Cell& c : tr.mixed) {
+        for (size_t ci = 0; ci < tr.mixed.size(); ++ci) {
+          const Cell& c = tr.mixed[ci];
           const uint32_t h = c.s / 2;
           // The 3 × 3 points of the split, row by row from (x, y).
-          const uint8_t p[9] = {uint8_t(c.vis & 1), vis(c.x + h, c.y), uint8_t(c.vis >> 1 & 1),
-                                vis(c.x, c.y + h), vis(c.x + h, c.y + h), vis(c.x + c.s, c.y + h),
-                                uint8_t(c.vis >> 2 & 1), vis(c.x + h, c.y + c.s), uint8_t(c.vis >> 3 & 1)};
+          const size_t b5 = 5 * ci;
+          const uint8_t p[9] = {uint8_t(c.vis & 1), vis(b5), uint8_t(c.vis >> 1 & 1),
+                                vis(b5 + 1), vis(b5 + 2), vis(b5 + 3),
+                                uint8_t(c.vis >> 2 & 1), vis(b5 + 4), uint8_t(c.vis >> 3 & 1)};
           for (uint32_t q = 0; q < 4; ++q) {
             const uint32_t i = q & 1, j = q >> 1, b = 3 * j + i;
             const uint8_t m = uint8_t(p[b] | p[b + 1] << 1 | p[b + 3] << 2 | p[b + 4] << 3);
