@@ -61,11 +61,25 @@ constexpr uint32_t kPoleSlot = ~0u;
 // centre, right and top midpoints (the 3 × 3 points minus the four corners).
 constexpr uint32_t kSplitPoints[5][2] = {{1, 0}, {0, 1}, {1, 1}, {2, 1}, {1, 2}};
 
+// cos and sin of 2π y / kSide for every grid column y (the azimuths of all corners).
+const std::vector<double>& azimuthTable() {
+  static const std::vector<double> t = [] {
+    std::vector<double> v(2 * size_t(kSide));
+    for (uint32_t y = 0; y < kSide; ++y) {
+      v[2 * y] = std::cos(2 * kPi * y / kSide);
+      v[2 * y + 1] = std::sin(2 * kPi * y / kSide);
+    }
+    return v;
+  }();
+  return t;
+}
+
 // The local direction of a corner; the horizon (u1 = 1) is lifted by 1e-6 in u1 (1e-3 rad).
 void cornerDirection(uint32_t key, float* d) {
-  const double u1 = std::min(double(key / (kSide + 1)) / kSide, 1 - 1e-6), u2 = double(key % (kSide + 1)) / kSide;
-  const double r = std::sqrt(u1), phi = 2 * kPi * u2;
-  d[0] = float(r * std::cos(phi)), d[1] = float(r * std::sin(phi)), d[2] = float(std::sqrt(1 - u1));
+  const double u1 = std::min(double(key / (kSide + 1)) / kSide, 1 - 1e-6);
+  const double* cs = &azimuthTable()[2 * size_t(key % (kSide + 1))];  // y < kSide after cornerKey
+  const double r = std::sqrt(u1);
+  d[0] = float(r * cs[0]), d[1] = float(r * cs[1]), d[2] = float(std::sqrt(1 - u1));
 }
 
 struct Tree {
