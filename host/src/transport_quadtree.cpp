@@ -51,9 +51,26 @@ struct Cell {
   uint8_t vis;
 };
 
+// Spreads the low 16 bits of v to the even bits.
+uint32_t spreadBits(uint32_t v) {
+  v &= 0xffff;
+  v = (v | v << 8) & 0x00ff00ff;
+  v = (v | v << 4) & 0x0f0f0f0f;
+  v = (v | v << 2) & 0x33333333;
+  return (v | v << 1) & 0x55555555;
+}
+uint32_t compactBits(uint32_t v) {
+  v &= 0x55555555;
+  v = (v | v >> 1) & 0x33333333;
+  v = (v | v >> 2) & 0x0f0f0f0f;
+  v = (v | v >> 4) & 0x00ff00ff;
+  return (v | v >> 8) & 0xffff;
+}
+// A corner's key: the Morton code of (x, y) (x ≤ kSide, y < kSide), so that sorted keys,
+// traced in that order, put nearby directions into one packet.
 uint32_t cornerKey(uint32_t x, uint32_t y) {
   if (x == 0 || y == kSide) y = 0;  // the pole is one direction; φ is periodic
-  return x * (kSide + 1) + y;
+  return spreadBits(x) << 1 | spreadBits(y);
 }
 constexpr uint32_t kPoleKey = 0;
 constexpr uint32_t kPoleSlot = ~0u;
@@ -76,8 +93,8 @@ const std::vector<double>& azimuthTable() {
 
 // The local direction of a corner; the horizon (u1 = 1) is lifted by 1e-6 in u1 (1e-3 rad).
 void cornerDirection(uint32_t key, float* d) {
-  const double u1 = std::min(double(key / (kSide + 1)) / kSide, 1 - 1e-6);
-  const double* cs = &azimuthTable()[2 * size_t(key % (kSide + 1))];  // y < kSide after cornerKey
+  const double u1 = std::min(double(compactBits(key >> 1)) / kSide, 1 - 1e-6);
+  const double* cs = &azimuthTable()[2 * size_t(compactBits(key))];  // y < kSide after cornerKey
   const double r = std::sqrt(u1);
   d[0] = float(r * cs[0]), d[1] = float(r * cs[1]), d[2] = float(std::sqrt(1 - u1));
 }
@@ -191,6 +208,17 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
   CellTables tables(o.order);
   tables.prepare(root);
   const std::vector<double> unshadowedLocal = clampedCosineProjected(o.order, 0, 0, 1);
+  // The root corners as sorted keys, and where corner (i, j) of the root grid sits among them.
+  std::vector<uint32_t> rootKeys;
+  for (uint32_t i = 0; i <= cells; ++i)
+    for (uint32_t j = 0; j < cells; ++j) rootKeys.push_back(cornerKey(i * root, j * root));
+  std::sort(rootKeys.begin(), rootKeys.end());
+  rootKeys.erase(std::unique(rootKeys.begin(), rootKeys.end()), rootKeys.end());
+  std::vector<uint32_t> rootIndex(size_t(cells + 1) * cells);
+  for (uint32_t i = 0; i <= cells; ++i)
+    for (uint32_t j = 0; j < cells; ++j)
+      rootIndex[size_t(i) * cells + j] = uint32_t(
+          std::lower_bound(rootKeys.begin(), rootKeys.end(), cornerKey(i * root, j * root)) - rootKeys.begin());
   // Packets of `width` rays of one vertex (o.packetWidth; 0: one ray per work-item).
   const size_t width = size_t(std::max(1, o.packetWidth));
   cl::Kernel kernel = rt.kernel("transport.cl", width > 1 ? "transport_ray_list_packet" : "transport_ray_list",
@@ -317,11 +345,7 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
     forTrees([&](size_t t, std::vector<double>&) {
       Tree& tr = trees[t];
       tr.full.assign(nc, 0.0);
-      tr.keys.clear();
-      for (uint32_t i = 0; i <= cells; ++i)
-        for (uint32_t j = 0; j < cells; ++j) tr.keys.push_back(cornerKey(i * root, j * root));
-      std::sort(tr.keys.begin(), tr.keys.end());
-      tr.keys.erase(std::unique(tr.keys.begin(), tr.keys.end()), tr.keys.end());
+      tr.keys = rootKeys;
       tr.splitting = true;
       directions(t);
     });
@@ -329,11 +353,7 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
     uint32_t levelSide = root;
     forTrees([&](size_t t, std::vector<double>& y) {
       Tree& tr = trees[t];
-      // The sorted root keys: the pole, then row i ≥ 1 (u1 = i/cells) column j at 1 + (i − 1)·cells + j.
-      auto vis = [&](uint32_t x, uint32_t y) {
-        const uint32_t i = x / root, j = (y / root) % cells;
-        return tr.keyVis[i == 0 ? 0 : 1 + size_t(i - 1) * cells + j];
-      };
+      auto vis = [&](uint32_t x, uint32_t y) { return tr.keyVis[rootIndex[size_t(x / root) * cells + (y / root) % cells]]; };
       tr.poleVis = vis(0, 0);
       std::vector<Cell> rootCells;
       for (uint32_t i = 0; i < cells; ++i)
