@@ -5,6 +5,7 @@
 #include <cmath>
 #include <vector>
 
+#include "gauss_legendre.h"
 #include "prtbake/sh.h"
 #include "test_common.h"
 
@@ -69,28 +70,13 @@ TEST_CASE("SH matches the DESIGN.md table and closed forms on the axes and poles
   }
 }
 
-// Gauss–Legendre nodes/weights on [-1, 1] (Newton on P_n), for exact quadrature
-// of polynomials on the sphere: n nodes in z times 2n+1 in φ integrate
+// Gauss–Legendre nodes/weights on [-1, 1] (gauss_legendre.h gives them on [0, 1]), for
+// exact quadrature of polynomials on the sphere: n nodes in z times 2n+1 in φ integrate
 // products of SH up to degree 2n−1 exactly.
 static void gaussLegendre(int n, std::vector<double>& x, std::vector<double>& w) {
+  const prtbake::detail::GaussRule g = prtbake::detail::gaussLegendre(n);
   x.resize(n), w.resize(n);
-  for (int i = 0; i < n; ++i) {
-    double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), pp = 0;
-    for (int it = 0; it < 100; ++it) {
-      double p1 = 1, p2 = 0;
-      for (int j = 1; j <= n; ++j) {
-        const double p3 = p2;
-        p2 = p1;
-        p1 = ((2 * j - 1) * z * p2 - (j - 1) * p3) / j;
-      }
-      pp = n * (z * p1 - p2) / (z * z - 1);
-      const double dz = p1 / pp;
-      z -= dz;
-      if (std::abs(dz) < 1e-16) break;
-    }
-    x[i] = z;
-    w[i] = 2 / ((1 - z * z) * pp * pp);
-  }
+  for (int i = 0; i < n; ++i) x[i] = 2 * g.x[i] - 1, w[i] = 2 * g.w[i];
 }
 
 TEST_CASE("SH orthonormality by exact quadrature to 16 bands (double)", "[sh]") {
