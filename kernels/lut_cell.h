@@ -11,11 +11,11 @@
 
 // One square [s0, s0 + h] × [t0, t0 + h] of one piece at one texel (32 bytes).
 typedef struct {
-  float mu;     // N·V in [0, 1]
-  float alpha;  // NDF width α > 0 (cloth: already clamped to kLutClothAlphaMin)
+  float mu;      // N·V in [0, 1]
+  float alpha;   // NDF width α > 0 (cloth: already clamped to kLutClothAlphaMin)
   float s0, t0, h;
-  int piece;    // LUT_PIECE_* bits
-  int pad0, pad1;
+  int piece;     // LUT_PIECE_* bits
+  float x1, x2;  // x(θ1), x(θ2) of the texel's θ map (computed on the host in double)
 } LutCell;
 
 // Output record per square: its value and its four quadrant predictions (lut_cubature.cl).

@@ -15,12 +15,17 @@
 // tan θ = α tan(πx/2) (specular) or θ = πx/2 (cloth).
 //
 // Build options: -DLUT_NDF=0|1 (GGX | Beckmann), -DLUT_VIS=0|1|2 (height-correlated
-// Smith | separable Smith | Schlick-GGX with k = α/2).
+// Smith | separable Smith | Schlick-GGX with k = α/2), -DLUT_PIECE=0..3 (LUT_PIECE_* bits:
+// every square of one launch is of one kind of piece, so the work-items of a work-group
+// take the same branches and PoCL can run them as vector lanes).
 #ifndef LUT_NDF
 #define LUT_NDF 0
 #endif
 #ifndef LUT_VIS
 #define LUT_VIS 0
+#endif
+#ifndef LUT_PIECE
+#define LUT_PIECE 0
 #endif
 
 #include "lut_cell.h"
@@ -82,22 +87,21 @@ inline float lc_cloth(float mu, float sv, float alpha, float st, float ct, float
   return d * nl * vdoth / (nl + mu - nl * mu) * st;
 }
 
-// x of θ and θ of x (with dθ/dx) for the piece's θ map.
-inline float lc_x_of(float th, float alpha, int cloth) {
-  if (cloth) return th / LC_HALF_PI;
-  return th >= LC_HALF_PI ? 1.0f : atan(tan(th) / alpha) / LC_HALF_PI;
-}
-inline float lc_theta_of(float x, float alpha, int cloth, float* dthdx) {
+// sin θ, cos θ and dθ/dx of the piece's θ map at x, without θ itself: for the specular
+// map tan θ = α tan(πx/2) = T gives sin θ = T/√(1 + T²), cos θ = 1/√(1 + T²).
+inline void lc_theta_of(float x, float alpha, int cloth, float* st, float* ct, float* dthdx) {
   if (cloth) {
     *dthdx = LC_HALF_PI;
-    return LC_HALF_PI * x;
+    *st = sincos(LC_HALF_PI * x, ct);
+    return;
   }
-  const float tau = tan(LC_HALF_PI * x);
-  *dthdx = LC_HALF_PI * alpha * (1.0f + tau * tau) / (1.0f + alpha * alpha * tau * tau);
-  return atan(alpha * tau);
+  const float tau = tan(LC_HALF_PI * x), t = alpha * tau, inv = rsqrt(1.0f + t * t);
+  *st = t * inv;
+  *ct = inv;
+  *dthdx = LC_HALF_PI * alpha * (1.0f + tau * tau) * (inv * inv);
 }
 
-// count: squares; cells: count LutCell; out: count × LUT_CELL_OUT_FLOAT4S float4, each
+// count: squares; cells: count LutCell, all of piece LUT_PIECE; out: count × LUT_CELL_OUT_FLOAT4S float4, each
 // (A, B, C, 0): first the square's 3×3 value Q, then for each quadrant k (s half k & 1,
 // t half k >> 1, as the host splits) the integral over the quadrant of the degree-2
 // (per coordinate) interpolant of the same 9 node values; these four sum to Q.
@@ -106,11 +110,9 @@ __kernel void lut_cells(int count, __global const LutCell* cells, __global float
   if (gid >= count) return;
   const LutCell c = cells[gid];
   const float mu = clamp(c.mu, 0.0f, 1.0f), alpha = c.alpha;
-  const int cloth = (c.piece & LUT_PIECE_CLOTH) != 0, band = (c.piece & LUT_PIECE_BAND) != 0;
+  const int cloth = (LUT_PIECE & LUT_PIECE_CLOTH) != 0, band = (LUT_PIECE & LUT_PIECE_BAND) != 0;
   const float sv = sqrt(fmax(1.0f - mu * mu, 0.0f));
-  const float thetaV = acos(mu);
-  const float x1 = lc_x_of(fmax(0.0f, 0.5f * LC_HALF_PI - 0.5f * thetaV), alpha, cloth);
-  const float x2 = lc_x_of(0.5f * LC_HALF_PI + 0.5f * thetaV, alpha, cloth);
+  const float x1 = c.x1, x2 = c.x2;
   // 3-point Gauss–Legendre on [0, 1], and the integrals of its Lagrange basis over
   // [0, 1/2] and [1/2, 1].
   const float gx[3] = {0.11270166537925831f, 0.5f, 0.88729833462074169f};
@@ -129,12 +131,11 @@ __kernel void lut_cells(int count, __global const LutCell* cells, __global float
       x = s * x1;
       dxds = x1;
     }
-    float dthdx;
-    const float th = lc_theta_of(x, alpha, cloth, &dthdx);
-    const float st = sin(th), ct = cos(th);
+    float st, ct, dthdx;
+    lc_theta_of(x, alpha, cloth, &st, &ct, &dthdx);
     float phiMax = LC_PI;
-    if (band) {
-      const float cc = clamp(-mu * cos(2.0f * th) / (sv * sin(2.0f * th)), -1.0f, 1.0f);
+    if (band) {  // cos φ_max = −μ cos 2θ/(√(1 − μ²) sin 2θ)
+      const float cc = clamp(-mu * (ct - st) * (ct + st) / (sv * 2.0f * st * ct), -1.0f, 1.0f);
       phiMax = acos(cc);
     }
     const float jac = 2.0f * c.h * c.h * dxds * dthdx * phiMax;

@@ -62,16 +62,22 @@ struct Texel {
   bool done = false;
 };
 
-// The pieces present at (μ, α) for the specular or the cloth integrand (the kernel
-// recomputes their geometry in float).
-std::vector<int> piecesAt(double mu, double alpha, bool cloth) {
-  std::vector<int> p;
+// The pieces present at (μ, α) for the specular or the cloth integrand, as root-cell
+// templates: piece bits and the x range [x1, x2] of the θ map (lut_cubature.cl).
+std::vector<LutCell> piecesAt(double mu, double alpha, bool cloth) {
+  std::vector<LutCell> p;
   if (alpha <= 0) return p;
   const double thetaV = std::acos(std::clamp(mu, 0.0, 1.0)), sv = std::sqrt(std::max(0.0, 1 - mu * mu));
-  const double th1 = std::max(0.0, kPi / 4 - thetaV / 2);
+  const double th1 = std::max(0.0, kPi / 4 - thetaV / 2), th2 = kPi / 4 + thetaV / 2;
+  auto xOf = [&](double th) {
+    if (cloth) return th / (kPi / 2);
+    return th >= kPi / 2 ? 1.0 : std::atan(std::tan(th) / alpha) / (kPi / 2);
+  };
   const int bit = cloth ? LUT_PIECE_CLOTH : 0;
-  if (th1 > 0) p.push_back(bit);
-  if (sv > 0) p.push_back(bit | LUT_PIECE_BAND);
+  LutCell c{float(mu), float(alpha), 0, 0, 1, bit, float(xOf(th1)), float(xOf(th2))};
+  if (th1 > 0) p.push_back(c);
+  c.piece |= LUT_PIECE_BAND;
+  if (sv > 0) p.push_back(c);
   return p;
 }
 
@@ -86,32 +92,46 @@ LutCell square(const LutCell& parent, int kid) {
 class CellEvaluator {
  public:
   CellEvaluator(Runtime& rt, const LutOptions& o) : rt_(rt) {
-    const std::string opts = "-DLUT_NDF=" + std::to_string(o.ndf == LutNdf::Beckmann ? 1 : 0) +
-                             " -DLUT_VIS=" + std::to_string(int(o.visibility));
-    kernel_ = rt.kernel("lut_cubature.cl", "lut_cells", opts);
+    for (int piece = 0; piece < 4; ++piece)
+      kernels_[piece] = rt.kernel("lut_cubature.cl", "lut_cells",
+                                  "-DLUT_NDF=" + std::to_string(o.ndf == LutNdf::Beckmann ? 1 : 0) +
+                                      " -DLUT_VIS=" + std::to_string(int(o.visibility)) +
+                                      " -DLUT_PIECE=" + std::to_string(piece));
   }
-  // The integrals over `cells`, (A, B, C) each.
+  // The values of `cells` (LUT_CELL_OUT_FLOAT4S float4 each, in the order of `cells`): one
+  // launch per kind of piece.
   std::vector<float> operator()(const std::vector<LutCell>& cells, double* seconds) {
-    std::vector<float> out(cells.size() * 4 * LUT_CELL_OUT_FLOAT4S);
-    if (cells.empty()) return out;
-    cl::Buffer in(rt_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, cells.size() * sizeof(LutCell),
-                  const_cast<LutCell*>(cells.data()));
-    cl::Buffer res(rt_.context(), CL_MEM_WRITE_ONLY, out.size() * sizeof(float));
-    kernel_.setArg(0, int(cells.size()));
-    kernel_.setArg(1, in);
-    kernel_.setArg(2, res);
-    const size_t local = 16, global = (cells.size() + local - 1) / local * local;
-    const auto t0 = std::chrono::steady_clock::now();
-    rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
-    rt_.queue().finish();
-    *seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    rt_.queue().enqueueReadBuffer(res, CL_TRUE, 0, out.size() * sizeof(float), out.data());
+    constexpr size_t kOut = 4 * LUT_CELL_OUT_FLOAT4S;
+    std::vector<float> out(cells.size() * kOut);
+    for (int piece = 0; piece < 4; ++piece) {
+      std::vector<LutCell> group;
+      std::vector<size_t> where;
+      for (size_t i = 0; i < cells.size(); ++i)
+        if (cells[i].piece == piece) group.push_back(cells[i]), where.push_back(i);
+      if (group.empty()) continue;
+      std::vector<float> res(group.size() * kOut);
+      cl::Buffer in(rt_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, group.size() * sizeof(LutCell),
+                    group.data());
+      cl::Buffer ob(rt_.context(), CL_MEM_WRITE_ONLY, res.size() * sizeof(float));
+      cl::Kernel& k = kernels_[piece];
+      k.setArg(0, int(group.size()));
+      k.setArg(1, in);
+      k.setArg(2, ob);
+      const size_t local = 16, global = (group.size() + local - 1) / local * local;
+      const auto t0 = std::chrono::steady_clock::now();
+      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
+      rt_.queue().finish();
+      *seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      rt_.queue().enqueueReadBuffer(ob, CL_TRUE, 0, res.size() * sizeof(float), res.data());
+      for (size_t i = 0; i < where.size(); ++i)
+        std::copy_n(&res[i * kOut], kOut, &out[where[i] * kOut]);
+    }
     return out;
   }
 
  private:
   Runtime& rt_;
-  cl::Kernel kernel_;
+  cl::Kernel kernels_[4];
 };
 
 // A pending request: the value of square `kid` (−1: the leaf's own Q) of leaf `leaf`.
@@ -172,18 +192,17 @@ LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
       const double mu = (double(t % size_t(n)) + 0.5) / n;
       const double alpha = lutAlpha(options, (double(t / size_t(n)) + 0.5) / n);
       Texel& tx = batch[i];
-      std::vector<int> pieces = piecesAt(mu, alpha, false);
+      std::vector<LutCell> pieces = piecesAt(mu, alpha, false);
       if (options.cloth) {
-        const std::vector<int> cp = piecesAt(mu, std::max(alpha, kLutClothAlphaMin), true);
+        const std::vector<LutCell> cp = piecesAt(mu, std::max(alpha, kLutClothAlphaMin), true);
         pieces.insert(pieces.end(), cp.begin(), cp.end());
       }
-      for (int piece : pieces) {
-        const bool isCloth = piece & LUT_PIECE_CLOTH;
-        const float a = float(isCloth ? std::max(alpha, kLutClothAlphaMin) : alpha);
+      for (const LutCell& piece : pieces) {
         for (int j = 0; j < kLutRootCells * kLutRootCells; ++j) {
           Leaf l;
           const float h = 1.0f / kLutRootCells;
-          l.cell = {float(mu), a, (j % kLutRootCells) * h, (j / kLutRootCells) * h, h, piece, 0, 0};
+          l.cell = piece;
+          l.cell.s0 = (j % kLutRootCells) * h, l.cell.t0 = (j / kLutRootCells) * h, l.cell.h = h;
           const uint32_t li = uint32_t(tx.leaves.size());
           cells.push_back(l.cell);
           reqs.push_back({uint32_t(i), li, -1});
