@@ -74,6 +74,11 @@ uint32_t cornerKey(uint32_t x, uint32_t y) {
 }
 constexpr uint32_t kPoleKey = 0;
 constexpr uint32_t kPoleSlot = ~0u;
+// The visible fraction taken for a mixed cell with 1, 2 or 3 visible corners: the mean
+// over straight edges crossing the two sides at uniform positions u, v of the corner
+// triangle's area uv/2 (1/8; 7/8 for three corners), 1/2 for two. (The corner count over 4
+// overstates a lone corner's share twofold and biases every edge cell.)
+constexpr double kMixedFraction[5] = {0, 0.125, 0.5, 0.875, 1};
 // The new points of a split cell, in half sides from its corner (x, y): the bottom, left,
 // centre, right and top midpoints (the 3 × 3 points minus the four corners).
 constexpr uint32_t kSplitPoints[5][2] = {{1, 0}, {0, 1}, {1, 1}, {2, 1}, {1, 2}};
@@ -268,7 +273,7 @@ void quadtreeTransport(Runtime& rt, const RaySetup& setup, cl::Buffer nodes, cl:
         if (c.vis == whole) tables.add(c, 1.0, tr.full.data());
         if (c.vis == 0 || c.vis == 15) continue;
         tr.mixed.push_back(c);
-        const double f = __builtin_popcount(c.vis) / 4.0;
+        const double f = kMixedFraction[__builtin_popcount(c.vis)];
         tables.add(c, tr.occludedForm ? 1 - f : f, tr.mixedSum.data());
         addCentreAbs(o.order, frame, c, tr.mixedAbs.data(), y);
       }
