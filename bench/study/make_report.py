@@ -391,16 +391,18 @@ w("**LUT.** The uniform table needs %s the integrand evaluations of the adaptive
   "that lost at E ≤ 3e-3 (below)." % ratio_span(lut_wins))
 w("")
 tr_wins = [c for c in uniform_cmp if c[0] == "transport" and c[1] != "sphere-unoccluded"]
+lost = ["`%s` at E = %s (%.2fx)" % (c[1], fmt(c[2]), c[4] / c[3]) for c in tr_wins if c[4] and c[3] > c[4]]
+tr_losses = ("It loses on %s, where the root grid alone costs about as much as uniform sampling needs."
+             % ", ".join(lost)) if lost else "It wins at every one."
 w("**Transport.** On shadowed meshes the visibility quadtree spends rays where visibility changes, which "
   "a per-vertex sample count cannot do: uniform sampling needs %s the rays at equal maximum error "
   "over the shadowed cases and tolerances above (uniform ÷ adaptive; the study interpolates the "
-  "uniform curve, so ratios near 1 are within its accuracy). It loses only at the loosest E = 2e-2, where "
-  "the root grid alone costs about as much as uniform sampling needs. It is host-bound: the cell bookkeeping and "
+  "uniform curve, so ratios near 1 are within its accuracy). %s It is host-bound: the cell bookkeeping and "
   "integrals on the host cost more than the rays, so it is slower in wall time than uniform sampling at "
   "the same maximum error on this 2-core machine (the timings above). Its blind spot is an occluder "
   "smaller than a root cell, which can pass between the corners; the root grid is refined with E so that "
   "such a miss costs a fraction of E (one root cell holds at most 0.2 E of any coefficient)."
-  % ratio_span(tr_wins))
+  % (ratio_span(tr_wins), tr_losses))
 w("")
 w("Before the quadtree, shadowed transport (and the LUT) chose how many samples each vertex gets, and lost at "
   "equal maximum error. How much room such rules have, two oracles say (bench/study/oracle.py; tables under "
