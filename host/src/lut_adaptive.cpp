@@ -15,8 +15,9 @@
 // below E, so that the splits of one round go to the device together (kernels/
 // lut_cubature.cl, one work-item per square). A texel stops when its estimate is below
 // E, or when the next split would pass the cap (counted at the cap). Samples are
-// integrand evaluations, 9 per square. Texels are independent and done in batches of
-// kTexelBatch, which bounds the host memory of large tables. Deterministic.
+// integrand evaluations, 9 per square. Texels are independent and done in batches sized
+// so that the host memory stays bounded even when every texel reaches the cap.
+// Deterministic.
 //
 // Measured against uniform Hammersley tables at equal maximum error: docs/accuracy.md,
 // bench/study/.
@@ -37,6 +38,11 @@ const double kPi = 3.14159265358979323846;
 constexpr int kNodesPerSquare = 9;         // the 3×3 rule
 constexpr int kSquaresPerSplit = 16;       // four new leaves, four children each
 constexpr size_t kTexelBatch = 1 << 14;
+// Host memory per texel is about kBytesPerEvaluation × its evaluations (leaves and the
+// round's requests; measured: 64² at the 65536 cap, 6.1 GB in one batch), so a batch
+// holds at most kBatchBytes / (kBytesPerEvaluation × cap) texels.
+constexpr size_t kBytesPerEvaluation = 24;
+constexpr size_t kBatchBytes = size_t(1) << 30;
 // A root cell is coarse enough for Q and its children to agree by chance while both miss
 // a feature (measured: 64² Beckmann, E = 1e-4, one texel 1.4e-3 off with an estimate of
 // 7e-5). Its estimate is therefore at least kRootGuard × the children's summed distance
@@ -59,7 +65,6 @@ struct Leaf {
 struct Texel {
   std::vector<Leaf> leaves;
   int64_t evals = 0;
-  bool done = false;
 };
 
 // The pieces present at (μ, α) for the specular or the cloth integrand, as root-cell
@@ -181,8 +186,9 @@ LutResult computeLutAdaptive(Runtime& rt, const LutOptions& options) {
   r.errorEstimate.assign(texels, 0.0f);
   r.samplesPerTexel.assign(texels, 0);
 
-  for (size_t first = 0; first < texels; first += kTexelBatch) {
-    const size_t count = std::min(kTexelBatch, texels - first);
+  const size_t batch = std::clamp(kBatchBytes / (kBytesPerEvaluation * size_t(cap)), size_t(16), kTexelBatch);
+  for (size_t first = 0; first < texels; first += batch) {
+    const size_t count = std::min(batch, texels - first);
     std::vector<Texel> batch(count);
     std::vector<LutCell> cells;
     std::vector<Request> reqs;
