@@ -168,18 +168,72 @@ TEST_CASE("OBJ loader: zero-length normals are recomputed, duplicates and degene
   }
 }
 
-TEST_CASE("Mesh loaders reject bad input with the file name", "[mesh]") {
-  const std::string dir = test::tempDir("mesh-bad");
-  auto expectInputError = [](const std::string& path, const std::string& what) {
+// A one-triangle glTF (data URI) whose NORMAL or COLOR_0 accessor has fewer
+// elements than POSITION, or whose NORMAL view has a stride longer than its data
+// allows. The loader read past the end of the buffer for the first case before the
+// accessor counts were checked against each other (found by fuzzing; under ASan a
+// heap-buffer-overflow); now each is one InputError naming the attribute.
+static std::string attributeMismatchGltf(const std::string& dir, const std::string& name, int normals, int colors,
+                                         int normalStride) {
+  const std::vector<float> pos = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const std::vector<float> nrm = {0, 0, 1, 0, 0, 1, 0, 0, 1};
+  std::string buf;
+  append(buf, pos);  // 0..36
+  append(buf, nrm);  // 36..72
+  const std::string json = R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "COLOR_0": 2}}]}],
+  "buffers": [{"byteLength": 72, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                  {"buffer": 0, "byteOffset": 36, "byteLength": 36)" +
+                           (normalStride ? ", \"byteStride\": " + std::to_string(normalStride) : "") + R"(}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5126, "count": )" + std::to_string(normals) + R"(, "type": "VEC3"},
+    {"bufferView": 1, "componentType": 5126, "count": )" + std::to_string(colors) + R"(, "type": "VEC3"}]})";
+  const std::string path = dir + "/" + name + ".gltf";
+  writeText(path, json);
+  return path;
+}
+
+TEST_CASE("glTF loader: every vertex attribute has POSITION's count, and strides fit", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-attr");
+  CHECK(loadMesh(attributeMismatchGltf(dir, "good", 3, 3, 0)).vertexCount() == 3);
+  struct Case {
+    const char* name;
+    int normals, colors, stride;
+    const char* what;
+  };
+  for (const Case& c : {Case{"short_normals", 2, 3, 0, "NORMAL: accessor 1 has 2 elements, but the primitive has 3 vertices"},
+                        Case{"short_colors", 3, 1, 0, "COLOR_0: accessor 2 has 1 elements, but the primitive has 3 vertices"},
+                        Case{"long_normals", 4, 3, 0, "NORMAL: accessor 1 has 4 elements, but the primitive has 3 vertices"},
+                        Case{"small_stride", 3, 3, 4, "has byte stride 4"},
+                        Case{"long_stride", 3, 3, 252, "NORMAL: accessor 1 runs past the end of its buffer"}}) {
+    const std::string path = attributeMismatchGltf(dir, c.name, c.normals, c.colors, c.stride);
+    INFO(c.name);
     try {
       loadMesh(path);
-      FAIL("no error for " << path);
+      FAIL("no error");
     } catch (const InputError& e) {
       INFO(e.what());
       CHECK(e.subject() == path);
-      CHECK(std::string(e.what()).find(what) != std::string::npos);
+      CHECK(std::string(e.what()).find(c.what) != std::string::npos);
     }
-  };
+  }
+}
+
+static void expectInputError(const std::string& path, const std::string& what) {
+  try {
+    loadMesh(path);
+    FAIL("no error for " << path);
+  } catch (const InputError& e) {
+    INFO(e.what());
+    CHECK(e.subject() == path);
+    CHECK(std::string(e.what()).find(what) != std::string::npos);
+  }
+}
+
+TEST_CASE("Mesh loaders reject bad input with the file name", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-bad");
   expectInputError(dir + "/missing.glb", "");
   writeText(dir + "/empty.obj", "# nothing\nv 0 0 0\n");
   expectInputError(dir + "/empty.obj", "no triangles");
@@ -191,13 +245,17 @@ TEST_CASE("Mesh loaders reject bad input with the file name", "[mesh]") {
   expectInputError(dir + "/garbage.glb", "");
   writeText(dir + "/x.ply", "ply\n");
   expectInputError(dir + "/x.ply", "unknown mesh format");
+}
+
+TEST_CASE("Mesh loaders reject the external bad meshes with the file name", "[mesh][data]") {
   const std::string inf = test::dataFile("meshes/gltf/BoxWithInfinites.glb");
-  if (!inf.empty()) expectInputError(inf, "non-finite position");
-  // A truncated copy of Box.glb: its accessors run past the end of the BIN chunk.
   const std::string box = test::dataFile("meshes/gltf/Box.glb");
-  if (!box.empty()) {
-    std::string bytes = readFile(box);
-    writeText(dir + "/truncated.glb", bytes.substr(0, bytes.size() - 200));
-    expectInputError(dir + "/truncated.glb", "");
-  }
+  PRTBAKE_SKIP_IF_NO_DATA(inf);
+  PRTBAKE_SKIP_IF_NO_DATA(box);
+  expectInputError(inf, "non-finite position");
+  // A truncated copy of Box.glb: its accessors run past the end of the BIN chunk.
+  const std::string dir = test::tempDir("mesh-bad-data");
+  std::string bytes = readFile(box);
+  writeText(dir + "/truncated.glb", bytes.substr(0, bytes.size() - 200));
+  expectInputError(dir + "/truncated.glb", "");
 }

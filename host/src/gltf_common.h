@@ -3,13 +3,26 @@
 
 #include <tiny_gltf.h>
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace prtbake::detail {
 
 // Loads .gltf (with external or data-URI buffers) or .glb (by magic, not by
 // extension) without decoding images. Throws InputError(path, ...) on failure.
 void loadGltfModel(const std::string& path, tinygltf::Model& model);
+
+// Reads `comps` components per element of accessor `index` as doubles (normalised
+// integers mapped to [0, 1] or [−1, 1]). Every number the file gives is checked
+// before it is used, in this one place, for every attribute and the indices: the
+// accessor, its buffer view and buffer exist; the view lies inside the buffer and the
+// accessor inside the view; a view's stride is at least one element and at most 252
+// bytes (glTF 2.0); the count equals expectedCount when one is given (a vertex
+// attribute against POSITION). So the allocation is bounded by the buffer's size and
+// nothing is read outside it. Throws InputError(path, what + ...) otherwise.
+std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
+                                 const std::string& what, size_t expectedCount = SIZE_MAX);
 
 // The nodes to walk: the default scene's roots, scene 0's, or every root node.
 std::vector<int> gltfRootNodes(const tinygltf::Model& model);

@@ -1,6 +1,7 @@
 // glTF 2.0 loader (tinygltf): every triangle primitive of the default scene in world space.
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <sys/stat.h>
@@ -9,6 +10,7 @@
 #include "gltf_common.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "prtbake/limits.h"
 #include "prtbake/mesh.h"
 
 namespace prtbake {
@@ -80,6 +82,67 @@ std::vector<int> gltfRootNodes(const tinygltf::Model& model) {
   return roots;
 }
 
+// See gltf_common.h: every number the file gives is checked before it is used.
+std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
+                                 const std::string& what, size_t expectedCount) {
+  const std::string name = what + ": accessor " + std::to_string(index);
+  if (index < 0 || index >= int(model.accessors.size())) throw InputError(path, name + " does not exist");
+  const auto& acc = model.accessors[size_t(index)];
+  if (expectedCount != SIZE_MAX && acc.count != expectedCount)
+    throw InputError(path, name + " has " + std::to_string(acc.count) + " elements, but the primitive has " +
+                               std::to_string(expectedCount) + " vertices (POSITION)");
+  const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+  if (ncomp < comps) throw InputError(path, name + " has too few components");
+  const int csize = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+  if (csize <= 0) throw InputError(path, name + " has an unsupported component type");
+  const size_t elementBytes = size_t(ncomp) * size_t(csize);
+  checkInputMemory(path, name + " (" + std::to_string(acc.count) + " elements)", 8.0 * double(acc.count) * comps);
+  if (acc.bufferView < 0)  // all zeros (sparse accessors are not read)
+    return std::vector<double>(acc.count * size_t(comps), 0.0);
+  if (acc.bufferView >= int(model.bufferViews.size()))
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " does not exist");
+  const auto& view = model.bufferViews[size_t(acc.bufferView)];
+  if (view.buffer < 0 || view.buffer >= int(model.buffers.size()))
+    throw InputError(path, what + ": buffer " + std::to_string(view.buffer) + " does not exist");
+  const auto& buf = model.buffers[size_t(view.buffer)].data;
+  const std::string past = name + " runs past the end of its buffer (truncated file?)";
+  // Each comparison keeps the next subtraction or product from wrapping around.
+  if (view.byteOffset > buf.size() || view.byteLength > buf.size() - view.byteOffset)
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) +
+                               " runs past the end of its buffer (truncated file?)");
+  if (view.byteStride != 0 && (view.byteStride < elementBytes || view.byteStride > 252))
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " has byte stride " +
+                               std::to_string(view.byteStride) + " (an element of accessor " + std::to_string(index) +
+                               " takes " + std::to_string(elementBytes) + " bytes; the most is 252)");
+  const size_t stride = view.byteStride ? view.byteStride : elementBytes;
+  if (acc.byteOffset > view.byteLength || acc.count > view.byteLength) throw InputError(path, past);
+  if (acc.count > 0 && (acc.count - 1) * stride + elementBytes > view.byteLength - acc.byteOffset)
+    throw InputError(path, past);
+  const size_t start = view.byteOffset + acc.byteOffset;
+  // Allocated only once the count is known to fit the buffer.
+  std::vector<double> out(acc.count * size_t(comps), 0.0);
+  for (size_t i = 0; i < acc.count; ++i) {
+    const unsigned char* e = buf.data() + start + i * stride;
+    for (int c = 0; c < comps; ++c) {
+      const unsigned char* p = e + size_t(c) * csize;
+      double v = 0;
+      switch (acc.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
+        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); v = d; break; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = *p; if (acc.normalized) v /= 255.0; break;
+        case TINYGLTF_COMPONENT_TYPE_BYTE: v = *reinterpret_cast<const signed char*>(p); if (acc.normalized) v = std::max(v / 127.0, -1.0); break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t u; std::memcpy(&u, p, 2); v = u; if (acc.normalized) v /= 65535.0; break; }
+        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t s; std::memcpy(&s, p, 2); v = s; if (acc.normalized) v = std::max(v / 32767.0, -1.0); break; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t u; std::memcpy(&u, p, 4); v = u; break; }
+        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t s; std::memcpy(&s, p, 4); v = s; break; }
+        default: throw InputError(path, name + " has an unsupported component type");
+      }
+      out[i * comps + c] = v;
+    }
+  }
+  return out;
+}
+
 }  // namespace detail
 
 namespace {
@@ -119,60 +182,25 @@ Mat4 nodeMatrix(const tinygltf::Node& n) {
   return mul(t, mul(r, s));
 }
 
-// Reads `comps` components per element of an accessor as doubles (normalised
-// integers mapped to [0, 1] or [−1, 1]). Throws InputError for truncated data.
-std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
-                                 const std::string& what) {
-  if (index < 0 || index >= int(model.accessors.size()))
-    throw InputError(path, what + ": accessor " + std::to_string(index) + " does not exist");
-  const auto& acc = model.accessors[index];
-  const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
-  if (ncomp < comps) throw InputError(path, what + ": accessor " + std::to_string(index) + " has too few components");
-  const int csize = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
-  if (csize <= 0) throw InputError(path, what + ": unsupported component type");
-  if (acc.bufferView < 0) {  // all zeros (sparse accessors are not read); no buffer bounds the count
-    if (acc.count > (size_t(1) << 28))
-      throw InputError(path, what + ": accessor " + std::to_string(index) + " claims " + std::to_string(acc.count) +
-                                 " elements without a buffer");
-    return std::vector<double>(acc.count * size_t(comps), 0.0);
-  }
-  if (acc.bufferView >= int(model.bufferViews.size()))
-    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " does not exist");
-  const auto& view = model.bufferViews[acc.bufferView];
-  if (view.buffer < 0 || view.buffer >= int(model.buffers.size()))
-    throw InputError(path, what + ": buffer " + std::to_string(view.buffer) + " does not exist");
-  const auto& buf = model.buffers[view.buffer].data;
-  const size_t stride = view.byteStride ? view.byteStride : size_t(ncomp) * csize;
-  const size_t start = view.byteOffset + acc.byteOffset;
-  if (acc.count > buf.size() || start > buf.size())  // also keeps the products below from overflowing
-    throw InputError(path, what + ": accessor " + std::to_string(index) + " runs past the end of its buffer (truncated file?)");
-  if (acc.count > 0) {
-    const size_t last = start + (acc.count - 1) * stride + size_t(ncomp) * csize;
-    if (last > buf.size() || acc.byteOffset + (acc.count - 1) * stride + size_t(ncomp) * csize > view.byteLength)
-      throw InputError(path, what + ": accessor " + std::to_string(index) + " runs past the end of its buffer (truncated file?)");
-  }
-  // Allocated only once the count is known to fit the buffer.
-  std::vector<double> out(acc.count * size_t(comps), 0.0);
-  for (size_t i = 0; i < acc.count; ++i) {
-    const unsigned char* e = buf.data() + start + i * stride;
-    for (int c = 0; c < comps; ++c) {
-      const unsigned char* p = e + size_t(c) * csize;
-      double v = 0;
-      switch (acc.componentType) {
-        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
-        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); v = d; break; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = *p; if (acc.normalized) v /= 255.0; break;
-        case TINYGLTF_COMPONENT_TYPE_BYTE: v = *reinterpret_cast<const signed char*>(p); if (acc.normalized) v = std::max(v / 127.0, -1.0); break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t u; std::memcpy(&u, p, 2); v = u; if (acc.normalized) v /= 65535.0; break; }
-        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t s; std::memcpy(&s, p, 2); v = s; if (acc.normalized) v = std::max(v / 32767.0, -1.0); break; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t u; std::memcpy(&u, p, 4); v = u; break; }
-        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t s; std::memcpy(&s, p, 4); v = s; break; }
-        default: throw InputError(path, what + ": unsupported component type");
-      }
-      out[i * comps + c] = v;
-    }
-  }
-  return out;
+// The per-vertex attributes of one primitive, each with as many elements as POSITION
+// (NORMAL and COLOR_0 are empty when the primitive has none).
+struct PrimitiveAttributes {
+  std::vector<double> position, normal, color;  // 3 per vertex
+  size_t vertexCount = 0;
+};
+
+PrimitiveAttributes readAttributes(const tinygltf::Model& model, const tinygltf::Primitive& prim,
+                                   const std::string& path, const std::string& what) {
+  PrimitiveAttributes a;
+  auto pos = prim.attributes.find("POSITION");
+  if (pos == prim.attributes.end()) throw InputError(path, what + " has no POSITION attribute");
+  a.position = detail::readAccessor(model, pos->second, 3, path, what + " POSITION");
+  a.vertexCount = a.position.size() / 3;
+  if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end())
+    a.normal = detail::readAccessor(model, it->second, 3, path, what + " NORMAL", a.vertexCount);
+  if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
+    a.color = detail::readAccessor(model, it->second, 3, path, what + " COLOR_0", a.vertexCount);
+  return a;
 }
 
 void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, int primIndex, const Mat4& world,
@@ -182,27 +210,21 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
   if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
     return;
   const std::string what = "mesh " + std::to_string(meshIndex) + " primitive " + std::to_string(primIndex);
-  auto pos = prim.attributes.find("POSITION");
-  if (pos == prim.attributes.end()) throw InputError(path, what + " has no POSITION attribute");
-  const std::vector<double> p = readAccessor(model, pos->second, 3, path, what + " POSITION");
-  const size_t nv = p.size() / 3;
-  std::vector<double> n;
-  if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
-    n = readAccessor(model, it->second, 3, path, what + " NORMAL");
-    // glTF 2.0 requires unit normals; a file that breaks this is refused rather than
-    // silently repaired (kNormalLengthTol: looser than float rounding, as the glTF
-    // validator's own check).
-    constexpr double kNormalLengthTol = 1e-2;
-    for (size_t v = 0; v < n.size() / 3; ++v) {
-      const double len = std::sqrt(n[3 * v] * n[3 * v] + n[3 * v + 1] * n[3 * v + 1] + n[3 * v + 2] * n[3 * v + 2]);
-      if (std::isfinite(len) && std::abs(len - 1.0) > kNormalLengthTol)
-        throw InputError(path, what + " NORMAL: vertex " + std::to_string(v) + " has length " + std::to_string(len) +
-                                   " (glTF 2.0 requires unit normals)");
-    }
+  const PrimitiveAttributes attrs = readAttributes(model, prim, path, what);
+  const std::vector<double>& p = attrs.position;
+  const std::vector<double>& n = attrs.normal;
+  const std::vector<double>& col = attrs.color;
+  const size_t nv = attrs.vertexCount;
+  // glTF 2.0 requires unit normals; a file that breaks this is refused rather than
+  // silently repaired (kNormalLengthTol: looser than float rounding, as the glTF
+  // validator's own check).
+  constexpr double kNormalLengthTol = 1e-2;
+  for (size_t v = 0; v < n.size() / 3; ++v) {
+    const double len = std::sqrt(n[3 * v] * n[3 * v] + n[3 * v + 1] * n[3 * v + 1] + n[3 * v + 2] * n[3 * v + 2]);
+    if (std::isfinite(len) && std::abs(len - 1.0) > kNormalLengthTol)
+      throw InputError(path, what + " NORMAL: vertex " + std::to_string(v) + " has length " + std::to_string(len) +
+                                 " (glTF 2.0 requires unit normals)");
   }
-  std::vector<double> col;
-  if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
-    col = readAccessor(model, it->second, 3, path, what + " COLOR_0");
   std::array<double, 3> base{1, 1, 1};
   if (prim.material >= 0 && prim.material < int(model.materials.size())) {
     const auto& f = model.materials[prim.material].pbrMetallicRoughness.baseColorFactor;
@@ -211,7 +233,7 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
   // Corner list of the primitive (indexed or not), before strip/fan conversion.
   std::vector<uint32_t> corners;
   if (prim.indices >= 0) {
-    const std::vector<double> idx = readAccessor(model, prim.indices, 1, path, what + " indices");
+    const std::vector<double> idx = detail::readAccessor(model, prim.indices, 1, path, what + " indices");
     corners.reserve(idx.size());
     for (double v : idx) {
       if (v < 0 || v >= double(nv))

@@ -10,23 +10,16 @@
 namespace prtbake {
 namespace {
 
-// A VEC4 float accessor (what writeTransportGltf writes), bounds-checked.
-std::vector<float> readVec4Float(const tinygltf::Model& model, int index, const std::string& path, const std::string& what) {
-  if (index < 0 || index >= int(model.accessors.size())) throw InputError(path, what + ": no such accessor");
-  const auto& acc = model.accessors[size_t(index)];
-  if (acc.type != TINYGLTF_TYPE_VEC4 || acc.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
-    throw InputError(path, what + ": expected a VEC4 float accessor");
-  std::vector<float> out(acc.count * 4, 0.0f);
-  if (acc.bufferView < 0 || acc.count == 0) return out;
-  if (acc.bufferView >= int(model.bufferViews.size())) throw InputError(path, what + ": no such buffer view");
-  const auto& view = model.bufferViews[size_t(acc.bufferView)];
-  if (view.buffer < 0 || view.buffer >= int(model.buffers.size())) throw InputError(path, what + ": no such buffer");
-  const auto& buf = model.buffers[size_t(view.buffer)].data;
-  const size_t stride = view.byteStride ? view.byteStride : 16, start = view.byteOffset + acc.byteOffset;
-  if (start + (acc.count - 1) * stride + 16 > buf.size() || acc.byteOffset + (acc.count - 1) * stride + 16 > view.byteLength)
-    throw InputError(path, what + ": runs past the end of its buffer (truncated file?)");
-  for (size_t i = 0; i < acc.count; ++i) std::memcpy(&out[4 * i], buf.data() + start + i * stride, 16);
-  return out;
+// A VEC4 float accessor (what writeTransportGltf writes) with `count` elements.
+std::vector<float> readVec4Float(const tinygltf::Model& model, int index, size_t count, const std::string& path,
+                                 const std::string& what) {
+  if (index >= 0 && index < int(model.accessors.size())) {
+    const auto& acc = model.accessors[size_t(index)];
+    if (acc.type != TINYGLTF_TYPE_VEC4 || acc.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      throw InputError(path, what + ": expected a VEC4 float accessor");
+  }
+  const std::vector<double> v = detail::readAccessor(model, index, 4, path, what, count);
+  return std::vector<float>(v.begin(), v.end());
 }
 
 }  // namespace
@@ -64,10 +57,8 @@ TransportCoeffs readTransportGltf(const Mesh& mesh) {
     for (int c = 0; c < channels; ++c)
       for (int g = 0; g < groups; ++g) {
         if (!prim.attributes.count(name(c, g))) throw InputError(path, where + ": " + name(c, g) + " is missing");
-        const std::vector<float> v = readVec4Float(model, prim.attributes.at(name(c, g)), path, where + " " + name(c, g));
-        if (v.size() != size_t(gp.vertexCount) * 4)
-          throw InputError(path, where + ": " + name(c, g) + " has " + std::to_string(v.size() / 4) + " elements, the primitive " +
-                                     std::to_string(gp.vertexCount) + " vertices");
+        const std::vector<float> v =
+            readVec4Float(model, prim.attributes.at(name(c, g)), gp.vertexCount, path, where + " " + name(c, g));
         for (uint32_t i = 0; i < gp.vertexCount; ++i)
           for (int q = 0; q < 4 && 4 * g + q < nc; ++q)
             t.coeffs[(size_t(gp.firstVertex) + i) * size_t(channels * nc) + size_t(c * nc + 4 * g + q)] = v[4 * size_t(i) + size_t(q)];

@@ -249,6 +249,17 @@ void meshes() {
     put("bad_index.bin", badIdx);
     put("gltf_bad_index.gltf", triangleJson("bad_index.bin", 42, 3));
   }
+  // A NORMAL accessor with fewer elements than POSITION (the loader once read past the
+  // end of the normals for the third vertex): the positions' view read as normals.
+  {
+    std::string j = triangleJson("triangle.bin", 42, 3);
+    const std::string attr = R"("attributes": {"POSITION": 0})";
+    j.replace(j.find(attr), attr.size(), R"("attributes": {"POSITION": 0, "NORMAL": 2})");
+    const std::string last = R"("type": "SCALAR"}]})";
+    j.replace(j.find(last), last.size(),
+              R"("type": "SCALAR"}, {"bufferView": 0, "componentType": 5126, "count": 2, "type": "VEC3"}]})");
+    put("gltf_normal_count.gltf", j);
+  }
   // NaN position.
   {
     Bytes nanBin = bin;
