@@ -220,7 +220,7 @@ int main(int argc, char** argv) {
     std::cerr << "prtbake: error: " << e.what() << "\n";
     return 1;
   } catch (const cl::Error& e) {
-    std::cerr << "prtbake: error: OpenCL: " << e.what() << " (" << clErrorName(e.err()) << ")\n";
+    std::cerr << "prtbake: error: " << Error::oneLine(describeClError(e, lastDeviceLabel())) << "\n";
     return 1;
   } catch (const std::bad_alloc&) {
     std::cerr << "prtbake: error: out of host memory\n";

@@ -57,14 +57,11 @@ std::string utcNow() {
   return buf;
 }
 
-std::string whyOutOfDate(const Job& job) {
-  if (fileSize(job.manifestPath) < 0) return "no manifest";
-  json m;
-  try {
-    m = json::parse(readFile(job.manifestPath));
-  } catch (const std::exception&) {
-    return "unreadable manifest";
-  }
+namespace {
+
+// whyOutOfDate on a parsed manifest; json::value() and operator[] throw
+// json::type_error where the manifest holds a value of another type than it should.
+std::string whyOutOfDateParsed(const Job& job, json& m) {
   if (!m.is_object() || m.value("prtbake_manifest", 0) != kManifestFormat) return "unknown manifest format";
   const std::string was = m.value("version", "");
   if (was != version()) return "prtbake version changed (" + was + " -> " + version() + ")";
@@ -103,6 +100,23 @@ std::string whyOutOfDate(const Job& job) {
   }
   if (!primarySeen) return "input changed: " + job.input;
   return "";
+}
+
+}  // namespace
+
+std::string whyOutOfDate(const Job& job) {
+  if (fileSize(job.manifestPath) < 0) return "no manifest";
+  json m;
+  try {
+    m = json::parse(readFile(job.manifestPath));
+  } catch (const std::exception&) {
+    return "unreadable manifest";
+  }
+  try {
+    return whyOutOfDateParsed(job, m);
+  } catch (const json::exception&) {
+    return "unknown manifest format";  // a value of the wrong type: rerun and rewrite it
+  }
 }
 
 }  // namespace prtbake::jobs

@@ -314,8 +314,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
       throw;
     }
   } catch (const cl::Error& e) {
-    fail(std::string("OpenCL: ") + e.what() + " (" + clErrorName(e.err()) + ")" +
-         (runtime_ ? " on " + runtime_->deviceLabel() : ""));
+    fail(describeClError(e, runtime_ ? runtime_->deviceLabel() : lastDeviceLabel()));
     return;
   } catch (const std::bad_alloc&) {
     fail("out of host memory");

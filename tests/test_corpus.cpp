@@ -103,19 +103,11 @@ TEST_CASE("corpus: env fails cleanly on every bad image", "[corpus]") {
   }
 }
 
-// Until the transport product is merged its jobs fail with "not available in this
-// build"; this asserts only the contract that holds before and after: a clean
-// failure that names the mesh (the job id is the file name), no signal, no hang,
-// nothing written.
-TEST_CASE("corpus: transport jobs fail cleanly on every bad mesh", "[corpus]") {
-  const std::string dir = tempDir("corpus-mesh");
-  std::vector<std::string> inputs = corpusFiles({".glb", ".gltf", ".obj"});
-  REQUIRE(inputs.size() >= 20);
-  for (const char* rel : {"meshes/gltf/BoxBadNormals.glb", "meshes/gltf/BoxWithInfinites.glb"})
-    if (const std::string f = dataFile(rel); !f.empty()) inputs.push_back(f);
-    else WARN(std::string("skipped ") + rel + ": external data not found");
-  fs::create_directories(dir + "/in/directory.glb");
-  inputs.push_back(dir + "/in/directory.glb");
+namespace {
+
+// The contract for transport jobs on bad meshes: a clean failure that names the mesh
+// (the job id is the file name), no signal, no hang, nothing written.
+void expectTransportJobsFailCleanly(const std::string& dir, const std::vector<std::string>& inputs) {
   for (size_t i = 0; i < inputs.size(); ++i) {
     const std::string& input = inputs[i];
     const std::string id = fs::path(input).filename().string();
@@ -134,6 +126,26 @@ TEST_CASE("corpus: transport jobs fail cleanly on every bad mesh", "[corpus]") {
     CHECK(r.output.find(id) != std::string::npos);
     CHECK(filesUnder(jobDir + "/out").empty());
   }
+}
+
+}  // namespace
+
+TEST_CASE("corpus: transport jobs fail cleanly on every bad mesh", "[corpus]") {
+  const std::string dir = tempDir("corpus-mesh");
+  std::vector<std::string> inputs = corpusFiles({".glb", ".gltf", ".obj"});
+  REQUIRE(inputs.size() >= 20);
+  fs::create_directories(dir + "/in/directory.glb");
+  inputs.push_back(dir + "/in/directory.glb");
+  expectTransportJobsFailCleanly(dir, inputs);
+}
+
+TEST_CASE("corpus: transport jobs fail cleanly on the external bad meshes", "[corpus][data]") {
+  std::vector<std::string> inputs;
+  for (const char* rel : {"meshes/gltf/BoxBadNormals.glb", "meshes/gltf/BoxWithInfinites.glb"}) {
+    inputs.push_back(dataFile(rel));
+    PRTBAKE_SKIP_IF_NO_DATA(inputs.back());
+  }
+  expectTransportJobsFailCleanly(tempDir("corpus-mesh-data"), inputs);
 }
 
 TEST_CASE("corpus: run fails cleanly on every bad job file, naming it on every line", "[corpus]") {
@@ -162,4 +174,53 @@ TEST_CASE("corpus: run fails cleanly on every bad job file, naming it on every l
   INFO(r.output);
   CHECK((r.exitCode == 1 || r.exitCode == 2));
   CHECK(r.output.rfind("prtbake: error: " + dir + "/directory.json", 0) == 0);
+}
+
+TEST_CASE("limits: a header that claims a huge image fails before allocating and states the limit", "[corpus]") {
+  const std::string dir = tempDir("corpus-limits");
+  // The corpus headers claim 65535² (JPEG), 200000×100000 (Radiance) and 2³²×32 (OpenEXR).
+  for (const char* name : {"huge_header.jpg", "huge_header.hdr", "extreme_window.exr"}) {
+    const std::string input = kCorpus + "/" + name;
+    INFO(input);
+    const CliResult r = runShell(cli() + "env '" + input + "' -o '" + dir + "/sh.json' --quiet");
+    INFO(r.output);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("more than the input memory limit of 4096 MiB") &&
+                             Catch::Contains("PRTBAKE_INPUT_LIMIT_MB"));
+  }
+  // The limit is configurable: a 64×32 float lat-long (24 KiB decoded) loads by default
+  // and is refused under a limit of 0.01 MiB, which the message states.
+  const std::vector<float> one(64 * 32, 1.0f);
+  ExrWriteOptions o;
+  o.envmap = 0;
+  writeExr(dir + "/small.exr", 64, 32, {{"R", one.data()}, {"G", one.data()}, {"B", one.data()}}, o);
+  CHECK(runShell(cli() + "env '" + dir + "/small.exr' -o '" + dir + "/ok.json' --quiet").exitCode == 0);
+  const CliResult r = runShell("PRTBAKE_INPUT_LIMIT_MB=0.01 " + cli() + "env '" + dir + "/small.exr' -o '" + dir +
+                               "/no.json' --quiet");
+  INFO(r.output);
+  CHECK(r.exitCode == 1);
+  CHECK_THAT(r.output, Catch::Contains("more than the input memory limit of 0.01 MiB"));
+  CHECK_FALSE(fileExists(dir + "/no.json"));
+}
+
+TEST_CASE("limits: a device allocation that fails names the device and leaves no output", "[corpus]") {
+  // PoCL's POCL_MEMORY_LIMIT=1 gives its CPU device 1 GiB of global memory and a largest
+  // allocation of 256 MiB; an 8192×4096 lat-long needs a 384 MiB buffer of texels.
+  const std::string dir = tempDir("corpus-device-memory");
+  const int w = 8192, h = 4096;
+  {
+    const std::vector<float> one(size_t(w) * h, 0.5f);
+    ExrWriteOptions o;
+    o.envmap = 0;
+    o.half = true;
+    writeExr(dir + "/big.exr", w, h, {{"R", one.data()}, {"G", one.data()}, {"B", one.data()}}, o);
+  }
+  const CliResult r = runShell("POCL_MEMORY_LIMIT=1 " + cli() + "env '" + dir + "/big.exr' -o '" + dir +
+                               "/out/sh.json' --device cpu --quiet");
+  INFO(r.output);
+  CHECK(r.exitCode == 1);
+  CHECK(lines(r.output).size() == 1);
+  CHECK_THAT(r.output, Catch::StartsWith("prtbake: error: ") && Catch::Contains("(Portable Computing Language)") &&
+                           Catch::Contains("out of device memory"));
+  CHECK(filesUnder(dir + "/out").empty());
 }

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "prtbake/error.h"
+#include "prtbake/limits.h"
 
 namespace prtbake {
 namespace {
@@ -109,6 +110,7 @@ std::string readFile(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   if (S_ISDIR(st.st_mode)) throw InputError(path, "is a directory, expected a file");
+  checkInputMemory(path, "reading the file (" + std::to_string(st.st_size) + " bytes)", double(st.st_size));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading");
   std::ostringstream ss;

@@ -252,7 +252,7 @@ ShCoeffs readShJson(const std::string& path, std::string* metaJson) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range for a number like 1e400
     throw InputError(path, std::string("not valid JSON: ") + e.what());
   }
   ShCoeffs c;

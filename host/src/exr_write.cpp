@@ -11,8 +11,10 @@
 
 #include <cstdio>
 
+#include "exr_check.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "prtbake/limits.h"
 #include "prtbake/exr.h"
 
 namespace prtbake {
@@ -64,15 +66,25 @@ const std::vector<float>* ExrImage::channel(const std::string& name) const {
 }
 
 ExrImage readExr(const std::string& path) {
-  readFile(path);  // a clear error for missing files and directories
+  // A clear error for missing files and directories, and for headers that lie about
+  // their size, before the OpenEXR library allocates what they claim.
+  const detail::ExrHeaderFacts facts = detail::checkExrHeader(path);
+  checkInputMemory(path, "a " + std::to_string(facts.width) + "x" + std::to_string(facts.height) + " image of " +
+                             std::to_string(facts.channels) + " channels",
+                   4.0 * double(facts.width) * double(facts.height) * double(facts.channels));
   ExrImage out;
   try {
     Imf::InputFile file(path.c_str());
     const Imath::Box2i dw = file.header().dataWindow();
-    out.width = dw.max.x - dw.min.x + 1;
-    out.height = dw.max.y - dw.min.y + 1;
-    if (out.width <= 0 || out.height <= 0 || double(out.width) * out.height > 1e9)
-      throw InputError(path, "unreasonable data window");
+    // In long long: a corrupt data window can span more than INT_MAX pixels.
+    const long long w = (long long)dw.max.x - dw.min.x + 1, h = (long long)dw.max.y - dw.min.y + 1;
+    if (w <= 0 || h <= 0) throw InputError(path, "empty data window");
+    size_t channelCount = 0;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) ++channelCount;
+    checkInputMemory(path, "a " + std::to_string(w) + "x" + std::to_string(h) + " image of " +
+                               std::to_string(channelCount) + " channels",
+                     4.0 * double(w) * double(h) * double(channelCount));
+    out.width = int(w), out.height = int(h);
     Imf::FrameBuffer fb;
     for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
       out.channelNames.push_back(it.name());

@@ -2,6 +2,8 @@
 // stb_image. See image_read.h for what each format becomes.
 #include "image_read.h"
 
+#include "exr_check.h"
+
 #include <ImfChannelList.h>
 #include <ImfEnvmap.h>
 #include <ImfEnvmapAttribute.h>
@@ -11,6 +13,7 @@
 #include <ImfRgbaFile.h>
 #include <ImfStandardAttributes.h>
 #include <stb/stb_image.h>
+#include <sys/stat.h>
 
 #include <array>
 #include <cerrno>
@@ -22,16 +25,17 @@
 #include <memory>
 
 #include "prtbake/error.h"
+#include "prtbake/limits.h"
 
 namespace prtbake::detail {
 namespace {
 
-// Images larger than this are refused before allocating (3 floats per pixel: 3 GiB).
-constexpr long long kMaxPixels = 1LL << 28;
-
 std::vector<unsigned char> readWholeFile(const std::string& path) {
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
   if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(::fileno(f.get()), &st) == 0)
+    checkInputMemory(path, "reading the file (" + std::to_string(st.st_size) + " bytes)", double(st.st_size));
   std::vector<unsigned char> bytes;
   unsigned char buf[1 << 16];
   size_t n;
@@ -49,13 +53,16 @@ bool isOpenExr(const std::string& path) {
   return std::fread(b, 1, 4, f.get()) == 4 && b[0] == 0x76 && b[1] == 0x2f && b[2] == 0x31 && b[3] == 0x01;
 }
 
-void checkSize(const std::string& path, long long w, long long h) {
+// Checked before anything of the image's size is allocated. `bytesPerPixel`: what
+// decoding holds per pixel at its peak (the float RGB result plus the decoder's copy).
+void checkSize(const std::string& path, long long w, long long h, double bytesPerPixel) {
   if (w <= 0 || h <= 0) throw InputError(path, "empty image");
-  if (w * h > kMaxPixels)
-    throw InputError(path, "image too large (" + std::to_string(w) + "x" + std::to_string(h) + ")");
+  checkInputMemory(path, "a " + std::to_string(w) + "x" + std::to_string(h) + " image", double(w) * double(h) * bytesPerPixel);
 }
 
 Image readOpenExr(const std::string& path) {
+  const ExrHeaderFacts facts = checkExrHeader(path);  // before the library allocates what the header claims
+  if (facts.width > 0 && facts.height > 0) checkSize(path, facts.width, facts.height, 12);
   Image img;
   img.format = "OpenEXR";
   // Imf::InputFile reads scanline and tiled files alike; for a tiled mip- or
@@ -64,7 +71,7 @@ Image readOpenExr(const std::string& path) {
   const Imf::Header& header = file.header();
   const Imath::Box2i dw = header.dataWindow();
   const long long w = (long long)dw.max.x - dw.min.x + 1, h = (long long)dw.max.y - dw.min.y + 1;
-  checkSize(path, w, h);
+  checkSize(path, w, h, 12);
   img.width = int(w), img.height = int(h);
   img.dataMinX = dw.min.x, img.dataMinY = dw.min.y;
   if (Imf::hasEnvmap(header)) {
@@ -190,30 +197,36 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
   const int len = int(bytes.size());
   Image img;
   int w = 0, h = 0, channelsInFile = 0;
+  // Peak bytes per pixel: the float RGB result (12), stb's decoded copy (3 samples of
+  // 4, 2 or 1 bytes) and, for integer images, the 16-bit code copy (6).
+  const bool hdr = stbi_is_hdr_from_memory(buf, len), sixteen = !hdr && stbi_is_16_bit_from_memory(buf, len);
+  const double peakBytesPerPixel = hdr ? 24 : sixteen ? 24 : 21;
+  // The header's size, checked before stb allocates its own buffer of that size.
+  if (stbi_info_from_memory(buf, len, &w, &h, &channelsInFile)) checkSize(path, w, h, peakBytesPerPixel);
   // Ask stb for 3 channels: it replicates grey and drops alpha.
-  if (stbi_is_hdr_from_memory(buf, len)) {
+  if (hdr) {
     img.format = "Radiance HDR";
     const std::string problem = radianceDataProblem(bytes);
     if (!problem.empty()) throw InputError(path, "cannot decode Radiance HDR image: " + problem);
     std::unique_ptr<float, StbFree> px(stbi_loadf_from_memory(buf, len, &w, &h, &channelsInFile, 3));
     if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stbReason());
-    checkSize(path, w, h);
+    checkSize(path, w, h, peakBytesPerPixel);
     img.rgb.assign(px.get(), px.get() + 3 * size_t(w) * size_t(h));
   } else {
     double lut16Max = 255.0;
     std::vector<unsigned short> codes;
-    if (stbi_is_16_bit_from_memory(buf, len)) {
+    if (sixteen) {
       img.format = "16-bit image";
       lut16Max = 65535.0;
       std::unique_ptr<stbi_us, StbFree> px(stbi_load_16_from_memory(buf, len, &w, &h, &channelsInFile, 3));
       if (!px) throw InputError(path, "cannot decode image: " + stbReason());
-      checkSize(path, w, h);
+      checkSize(path, w, h, peakBytesPerPixel);
       codes.assign(px.get(), px.get() + 3 * size_t(w) * size_t(h));
     } else {
       img.format = "8-bit image";
       std::unique_ptr<stbi_uc, StbFree> px(stbi_load_from_memory(buf, len, &w, &h, &channelsInFile, 3));
       if (!px) throw InputError(path, "cannot decode image: " + stbReason());
-      checkSize(path, w, h);
+      checkSize(path, w, h, peakBytesPerPixel);
       codes.assign(px.get(), px.get() + 3 * size_t(w) * size_t(h));
     }
     // One table entry per code value, computed in double.

@@ -2,9 +2,9 @@
 // float32 little-endian, C order, shape [V, n²] or [V, 3, n²].
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <sstream>
 
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/preview.h"
 
@@ -35,6 +35,7 @@ std::string dictValue(const std::string& dict, const std::string& key, const std
 }
 
 std::vector<size_t> parseShape(const std::string& s, const std::string& path) {
+  if (s.size() < 2 || s.front() != '(' || s.back() != ')') throw InputError(path, "not a .npy file: malformed shape");
   std::vector<size_t> shape;
   std::string inner = s.substr(1, s.size() - 2);
   std::stringstream ss(inner);
@@ -60,9 +61,7 @@ std::string shapeText(const std::vector<size_t>& shape) {
 }  // namespace
 
 TransportCoeffs readTransportNpy(const std::string& path, size_t expectedVertices) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot open file");
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = readFile(path);  // checks the file's size against the input memory limit
   if (bytes.size() < 10 || bytes.compare(0, 6, "\x93NUMPY") != 0) throw InputError(path, "not a .npy file (bad magic)");
   const int major = static_cast<unsigned char>(bytes[6]);
   size_t headerLen, pre;
@@ -104,10 +103,13 @@ TransportCoeffs readTransportNpy(const std::string& path, size_t expectedVertice
   if (expectedVertices > 0 && t.vertexCount != expectedVertices)
     throw InputError(path, "transport has " + std::to_string(t.vertexCount) + " vertices but the mesh has " +
                                std::to_string(expectedVertices) + " (shape " + shapeText(shape) + ")");
-  const size_t count = t.vertexCount * size_t(t.channels) * perChannel;
-  if (bytes.size() - pre - headerLen != count * 4)
-    throw InputError(path, "data size " + std::to_string(bytes.size() - pre - headerLen) + " bytes does not match shape " +
-                               shapeText(shape) + " (" + std::to_string(count * 4) + " bytes)");
+  // In double, so that a shape whose product wraps around in size_t cannot match.
+  const double shapeBytes = 4.0 * double(t.vertexCount) * double(t.channels) * double(perChannel);
+  const size_t dataBytes = bytes.size() - pre - headerLen;
+  if (double(dataBytes) != shapeBytes)
+    throw InputError(path, "data size " + std::to_string(dataBytes) + " bytes does not match shape " + shapeText(shape) +
+                               " (" + std::to_string(shapeBytes) + " bytes)");
+  const size_t count = dataBytes / 4;
   t.coeffs.resize(count);
   std::memcpy(t.coeffs.data(), bytes.data() + pre + headerLen, count * 4);
   for (size_t i = 0; i < count; ++i)

@@ -172,6 +172,11 @@ int resolveDevice(const std::string& specIn) {
   return int(n);
 }
 
+namespace {
+std::mutex gLastLabelMutex;
+std::string gLastLabel;
+}  // namespace
+
 Runtime::Runtime(const std::string& deviceSpec) {
   const int index = resolveDevice(deviceSpec);
   auto flat = flatDevices();
@@ -184,9 +189,25 @@ Runtime::Runtime(const std::string& deviceSpec) {
     throw DeviceError(deviceLabel(), std::string("cannot create a context: ") + e.what() + " (" +
                                          clErrorName(e.err()) + ")");
   }
+  std::lock_guard<std::mutex> lock(gLastLabelMutex);
+  gLastLabel = deviceLabel();
 }
 
 std::string Runtime::deviceLabel() const { return trim(info_.name) + " (" + trim(info_.platform) + ")"; }
+
+std::string lastDeviceLabel() {
+  std::lock_guard<std::mutex> lock(gLastLabelMutex);
+  return gLastLabel;
+}
+
+std::string describeClError(const cl::Error& e, const std::string& deviceLabel) {
+  const int code = e.err();
+  const bool memory = code == CL_MEM_OBJECT_ALLOCATION_FAILURE || code == CL_OUT_OF_RESOURCES ||
+                      code == CL_INVALID_BUFFER_SIZE || code == CL_OUT_OF_HOST_MEMORY;
+  const std::string device = deviceLabel.empty() ? std::string("OpenCL") : deviceLabel;
+  return device + ": " + (memory ? "out of device memory: " : "OpenCL error: ") + e.what() + " (" +
+         clErrorName(code) + ")";
+}
 
 size_t Runtime::maxWorkGroupSize() const { return device_.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>(); }
 

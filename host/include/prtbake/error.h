@@ -10,13 +10,33 @@
 
 namespace prtbake {
 
+// The message is one line, whatever a library's reason or a file name holds: control
+// characters (a newline in a decoder's message, a tab in a path) are written as \xNN.
+// subject() and detail() keep the raw text.
 class Error : public std::runtime_error {
  public:
   Error(std::string subject, std::string what)
-      : std::runtime_error(subject.empty() ? what : subject + ": " + what),
+      : std::runtime_error(oneLine(subject.empty() ? what : subject + ": " + what)),
         subject_(std::move(subject)), detail_(std::move(what)) {}
   const std::string& subject() const { return subject_; }
   const std::string& detail() const { return detail_; }
+
+  static std::string oneLine(const std::string& text) {
+    std::string out;
+    out.reserve(text.size());
+    for (const char ch : text) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c >= 0x20 && c != 0x7f) {
+        out += ch;
+      } else {
+        static const char* hex = "0123456789abcdef";
+        out += "\\x";
+        out += hex[c >> 4];
+        out += hex[c & 15];
+      }
+    }
+    return out;
+  }
 
  private:
   std::string subject_, detail_;

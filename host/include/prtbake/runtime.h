@@ -95,4 +95,13 @@ class Runtime {
 // Converts an OpenCL error code into its symbolic name ("CL_OUT_OF_RESOURCES").
 const char* clErrorName(int code);
 
+// The label of the device of the most recently created Runtime in this process ("" when
+// none), so that a front end can name the device in an OpenCL error it catches.
+std::string lastDeviceLabel();
+
+// One line for an OpenCL error on `deviceLabel`: the failing call and the error's name,
+// and, for an allocation that failed (CL_MEM_OBJECT_ALLOCATION_FAILURE, CL_OUT_OF_RESOURCES,
+// CL_INVALID_BUFFER_SIZE, CL_OUT_OF_HOST_MEMORY), that the device ran out of memory.
+std::string describeClError(const cl::Error& e, const std::string& deviceLabel);
+
 }  // namespace prtbake

@@ -1,0 +1,29 @@
+// prtbake/limits.h: the memory an input may take once decoded.
+//
+// Every loader checks the size a file claims (an image's width and height, a glTF
+// accessor's count, a .npy shape) against this limit before it allocates, so a
+// header that lies costs one clear error instead of an allocation failure, a swap
+// storm or the OOM killer. The limit is per decoded input (one image, one mesh,
+// one array), not for the whole process.
+//
+// Default: 4 GiB, enough for a 16384×8192 float lat-long (1.6 GB) or a mesh of
+// tens of millions of vertices. The environment variable PRTBAKE_INPUT_LIMIT_MB
+// (read once, on first use) or setInputMemoryLimit() changes it.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace prtbake {
+
+// The limit in bytes.
+size_t inputMemoryLimit();
+// Sets the limit for this process (0 restores the default / the environment's).
+void setInputMemoryLimit(size_t bytes);
+
+// Throws InputError(subject, "<what> needs N MiB, more than the input memory limit
+// of M MiB (set PRTBAKE_INPUT_LIMIT_MB to change it)") when `bytes` exceed the
+// limit. `bytes` is a double so that a product of header fields cannot wrap.
+void checkInputMemory(const std::string& subject, const std::string& what, double bytes);
+
+}  // namespace prtbake

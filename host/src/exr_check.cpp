@@ -1,0 +1,108 @@
+// The OpenEXR header walk (exr_check.h).
+#include "exr_check.h"
+
+#include <cstdint>
+#include <cstring>
+
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+
+namespace prtbake::detail {
+namespace {
+
+constexpr uint32_t kTiledFlag = 0x200, kLongNamesFlag = 0x400, kMultipartFlag = 0x1000;
+
+int32_t le32(const std::string& b, size_t at) {
+  uint32_t v = 0;
+  for (int k = 0; k < 4; ++k) v |= uint32_t(uint8_t(b[at + size_t(k)])) << (8 * k);
+  return int32_t(v);
+}
+
+// Scanlines per chunk of each compression (ImfCompression.h order).
+int linesPerChunk(int compression) {
+  switch (compression) {
+    case 0: case 1: case 2: return 1;  // NONE, RLE, ZIPS
+    case 3: case 5: return 16;         // ZIP, PXR24
+    case 4: case 6: case 7: case 8: return 32;  // PIZ, B44, B44A, DWAA
+    case 9: return 256;                // DWAB
+    default: return 0;                 // unknown: the library reports it
+  }
+}
+
+}  // namespace
+
+ExrHeaderFacts checkExrHeader(const std::string& path) {
+  const std::string b = readFile(path);
+  auto corrupt = [&](const std::string& what) { return InputError(path, "corrupt OpenEXR header: " + what); };
+  if (b.size() < 8) throw InputError(path, "truncated OpenEXR file (" + std::to_string(b.size()) + " bytes)");
+  const uint32_t flags = uint32_t(le32(b, 4)) & ~0xffu;
+  const size_t maxName = (flags & kLongNamesFlag) ? 255 : 31;
+  const bool multipart = (flags & kMultipartFlag) != 0;
+  ExrHeaderFacts facts;
+  int compression = -1;
+  size_t pos = 8;
+  // A null-terminated string of at most maxName characters at pos.
+  auto readName = [&](const char* what) {
+    const size_t end = b.find('\0', pos);
+    if (end == std::string::npos) throw corrupt(std::string("a ") + what + " runs past the end of the file");
+    if (end - pos > maxName) throw corrupt(std::string("a ") + what + " is longer than " + std::to_string(maxName) + " bytes");
+    std::string s = b.substr(pos, end - pos);
+    pos = end + 1;
+    return s;
+  };
+  for (int part = 0;; ++part) {
+    if (pos >= b.size()) throw corrupt("the header runs past the end of the file");
+    if (b[pos] == '\0') {  // an empty header: the end of a multi-part file's header list
+      if (part == 0) throw corrupt("no attributes");
+      ++pos;
+      break;
+    }
+    for (;;) {  // attributes of one header
+      if (pos >= b.size()) throw corrupt("the header runs past the end of the file");
+      if (b[pos] == '\0') {
+        ++pos;
+        break;
+      }
+      const std::string name = readName("attribute name"), type = readName("attribute type");
+      if (b.size() - pos < 4) throw corrupt("attribute '" + name + "' runs past the end of the file");
+      const int32_t size = le32(b, pos);
+      pos += 4;
+      if (size < 0 || size_t(size) > b.size() - pos)
+        throw corrupt("attribute '" + name + "' claims " + std::to_string(size) + " bytes, the file has " +
+                      std::to_string(b.size() - pos) + " left");
+      if (part == 0 && name == "dataWindow" && type == "box2i" && size == 16) {
+        facts.width = (long long)le32(b, pos + 8) - le32(b, pos) + 1;
+        facts.height = (long long)le32(b, pos + 12) - le32(b, pos + 4) + 1;
+      } else if (part == 0 && name == "channels" && type == "chlist") {
+        // Entries name\0 + 16 bytes, ending in \0.
+        size_t p = pos;
+        const size_t end = pos + size_t(size);
+        while (p < end && b[p] != '\0') {
+          const size_t nul = b.find('\0', p);
+          if (nul == std::string::npos || nul >= end || end - nul - 1 < 16) throw corrupt("malformed channel list");
+          p = nul + 1 + 16;
+          ++facts.channels;
+        }
+      } else if (part == 0 && name == "compression" && type == "compression" && size == 1) {
+        compression = uint8_t(b[pos]);
+      }
+      pos += size_t(size);
+    }
+    if (!multipart) break;
+  }
+  // A single-part scanline file's offset table follows the header: one 8-byte offset
+  // per chunk of lines.
+  if (!multipart && !(flags & kTiledFlag) && facts.height > 0) {
+    const int lines = linesPerChunk(compression);
+    if (lines > 0) {
+      const double tableBytes = 8.0 * double((facts.height + lines - 1) / lines);
+      if (tableBytes > double(b.size() - pos))
+        throw InputError(path, "truncated OpenEXR file: the offset table of its " + std::to_string(facts.height) +
+                                   " lines needs " + std::to_string((long long)tableBytes) + " bytes, the file has " +
+                                   std::to_string(b.size() - pos) + " after the header");
+    }
+  }
+  return facts;
+}
+
+}  // namespace prtbake::detail
