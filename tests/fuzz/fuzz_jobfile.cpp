@@ -1,0 +1,37 @@
+// Fuzz target: job files (`prtbake run`, and the queue's spool entries, which are job
+// files) through loadJobFile and checkOutputConflicts, then every valid job's manifest
+// through whyOutOfDate, as an incremental rerun reads it.
+// Input: two parts (fuzz_target.h's splitParts): the job file, written as job.json
+// beside an input file in.exr; and the manifest, written as out.json.manifest.json,
+// which is the manifest of a job whose first output is "out.json".
+#include "fuzz_target.h"
+#include "jobs.h"
+#include "manifest.h"
+
+using namespace prtbake;
+
+PRTBAKE_FUZZ_TARGET(jobfile) {
+  fuzz::clearScratch();
+  const std::vector<std::string> parts = fuzz::splitParts(data, size, 2);
+  fuzz::writeScratch("in.exr", "not read: job files are validated without reading inputs");
+  fuzz::writeScratch("out.json", "{}");
+  fuzz::writeScratch("out.json.manifest.json", parts[1]);
+  const std::string path = fuzz::writeScratch("job.json", parts[0]);
+  std::vector<jobs::JobFile> files;
+  if (!fuzz::expectCleanFailure(path, [&] { files.push_back(jobs::loadJobFile(path)); })) fuzz::fail("loadJobFile threw");
+  jobs::checkOutputConflicts(files);
+  for (const auto& p : files[0].fileProblems) {
+    const std::string line = jobs::formatProblem(path, p);
+    if (line.find('\n') != std::string::npos) fuzz::fail("problem spans lines: " + line);
+  }
+  for (const auto& job : files[0].jobs) {
+    for (const auto& p : job.problems)
+      if (jobs::formatProblem(path, p).find('\n') != std::string::npos) fuzz::fail("problem spans lines");
+    if (!job.valid()) continue;
+    if (!job.type || job.outputs.empty()) fuzz::fail("a valid job without a type or outputs");
+    // Every valid job reaches the manifest check; only this one names the fuzzed manifest.
+    const std::string manifest = job.manifestPath;
+    fuzz::expectCleanFailure(manifest, [&] { jobs::whyOutOfDate(job); });
+  }
+  return 0;
+}
