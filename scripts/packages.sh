@@ -1,9 +1,12 @@
 # Sourced by setup.sh and bench/study/run.sh: the Debian packages prtbake builds and tests
 # with, and install_missing, which installs those of its arguments that are not installed
 # (as root, or via sudo).
-PRTBAKE_PKGS="build-essential cmake pocl-opencl-icd ocl-icd-opencl-dev opencl-clhpp-headers clinfo \
-libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev catch2 libstb-dev nlohmann-json3-dev \
-slurm-wlm munge"
+# PRTBAKE_BUILD_PKGS: the library and the CLI; PRTBAKE_TEST_PKGS adds the tests' needs
+# (Catch2, and Slurm and Munge for the throw-away cluster of the Slurm test).
+PRTBAKE_BUILD_PKGS="build-essential cmake pocl-opencl-icd ocl-icd-opencl-dev opencl-clhpp-headers clinfo \
+libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev libstb-dev nlohmann-json3-dev"
+PRTBAKE_TEST_PKGS="$PRTBAKE_BUILD_PKGS catch2 slurm-wlm munge"
+PRTBAKE_PKGS=$PRTBAKE_TEST_PKGS
 
 install_missing() {
   local missing="" p sudo=""

@@ -26,7 +26,13 @@ inline std::string dataDir() {
   return ::stat(dir.c_str(), &st) == 0 ? dir : std::string();
 }
 
-// Path of a file in the data folder, or "" (and a warning) when it is absent.
+// Why a test that needs external data is skipped.
+inline std::string noDataReason() {
+  return std::string("external data not found (") + PRTBAKE_TEST_DATA_DIR +
+         " or $PRTBAKE_DATA_DIR: the shared test data folder)";
+}
+
+// Path of a file in the data folder, or "" when it is absent.
 inline std::string dataFile(const std::string& rel) {
   const std::string dir = dataDir();
   if (dir.empty()) return {};
@@ -35,14 +41,23 @@ inline std::string dataFile(const std::string& rel) {
   return ::stat(path.c_str(), &st) == 0 ? path : std::string();
 }
 
-// A fresh empty directory under $TMPDIR (or /tmp), unique per process.
-inline std::string tempDir(const std::string& name) {
-  const char* base = std::getenv("TMPDIR");
-  std::string dir = std::string(base && *base ? base : "/tmp") + "/prtbake-test-" +
-                    std::to_string(::getpid()) + "-" + name;
-  std::system(("rm -rf '" + dir + "' && mkdir -p '" + dir + "'").c_str());
-  return dir;
-}
+// A fresh empty directory under $TMPDIR (or /tmp), unique per process. The test
+// main (catch_main.cpp) removes every such directory when the process's tests pass,
+// and names the ones it keeps when one fails.
+std::string tempDir(const std::string& name);
+
+// Skipping (Catch2 v2 has none). A test case that cannot run here says why with
+// PRTBAKE_SKIP(reason), which leaves the test case; skipPart(reason) records that a
+// part of it could not run and goes on. The test main then exits with kSkipExitCode
+// (ctest's SKIP_RETURN_CODE, so ctest counts the test as skipped) when no test case
+// failed and every test case it ran skipped, prints each reason as a line
+// "SKIPPED: <test case>: <reason>" and appends it to $PRTBAKE_SKIP_LOG, which
+// scripts/test.sh lists after ctest's summary. Where every test must run (CI sets
+// PRTBAKE_FORBID_SKIPS=1) a skip is a failure that gives the reason.
+constexpr int kSkipExitCode = 77;
+void skipPart(const std::string& reason);
+// Records the skip of the current test case (PRTBAKE_SKIP then returns from it).
+void skipTestCase(const std::string& reason);
 
 struct CliResult {
   int exitCode;
@@ -72,11 +87,14 @@ inline bool fileExists(const std::string& path) {
 
 }  // namespace prtbake::test
 
-// Catch2 v2 has no SKIP: warn with the reason and leave the test case.
-#define PRTBAKE_SKIP_IF_NO_DATA(path)                                                     \
-  do {                                                                                    \
-    if ((path).empty()) {                                                                 \
-      WARN("skipped: external data not found (set PRTBAKE_DATA_DIR or ../shared/data)"); \
-      return;                                                                             \
-    }                                                                                     \
+#define PRTBAKE_SKIP(reason)                   \
+  do {                                         \
+    ::prtbake::test::skipTestCase(reason);     \
+    return;                                    \
+  } while (0)
+
+// For a path from dataFile(): skips when the external data is absent.
+#define PRTBAKE_SKIP_IF_NO_DATA(path) \
+  do {                                \
+    if ((path).empty()) PRTBAKE_SKIP(::prtbake::test::noDataReason()); \
   } while (0)

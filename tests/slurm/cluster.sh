@@ -2,11 +2,13 @@
 # A throw-away single-node Slurm cluster for tests, all state under DIR.
 #   cluster.sh start DIR   writes DIR/slurm.conf, starts munged, slurmctld and slurmd
 #                          (as root), waits until the node is idle; prints
-#                          "export SLURM_CONF=DIR/slurm.conf". Exit 3: Slurm or
-#                          munge is not installed; 1: it did not come up (see DIR/*.log).
+#                          "export SLURM_CONF=DIR/slurm.conf".
 #   cluster.sh stop DIR    stops the daemons it started, by the PIDs it recorded.
-# Works without systemd (containers, CI). Needs root: the daemons run as root,
-# munged as the munge user.
+# Exit codes of start: 0 up; 3 a cluster cannot run here (not root, Slurm or Munge
+# not installed, no cgroup filesystem, a daemon that exits at once: the reason is the
+# last line on stderr); 1 the daemons run but the node did not become idle in time.
+# On failure stderr ends with the daemons' own last log lines. Every wait is bounded
+# in seconds (START_TIMEOUT, default 60). Works without systemd (containers, CI).
 set -euo pipefail
 cmd=${1:-}; dir=${2:-}
 [ -n "$cmd" ] && [ -n "$dir" ] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }
@@ -28,11 +30,37 @@ stop() {
 if [ "$cmd" = stop ]; then stop; exit 0; fi
 [ "$cmd" = start ] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }
 
+cannot() { echo "cannot run a test cluster here: $*" >&2; exit 3; }
 for c in munged slurmctld slurmd sbatch squeue scontrol sinfo setpriv; do
-  command -v "$c" >/dev/null 2>&1 || { echo "not installed: $c" >&2; exit 3; }
+  command -v "$c" >/dev/null 2>&1 || cannot "$c is not installed (apt-get install slurm-wlm munge)"
 done
-id munge >/dev/null 2>&1 || { echo "no munge user" >&2; exit 3; }
-[ "$(id -u)" = 0 ] || { echo "needs root" >&2; exit 3; }
+id munge >/dev/null 2>&1 || cannot "no munge user (apt-get install munge)"
+[ "$(id -u)" = 0 ] || cannot "not root (the daemons run as root)"
+# slurmd reads its node's resources through the cgroup filesystem.
+[ -n "$(ls -A /sys/fs/cgroup 2>/dev/null)" ] || cannot "no cgroup filesystem at /sys/fs/cgroup (mount -t cgroup2 none /sys/fs/cgroup)"
+timeout_s=${START_TIMEOUT:-60}
+deadline=$(( $(date +%s) + timeout_s ))
+
+# The daemons' last log lines, for a failure message.
+logs() {
+  for f in "$dir/munge/munged.log" "$dir/munged.out" "$dir/slurmctld.log" "$dir/slurmctld.out" "$dir/slurmd.log" "$dir/slurmd.out"; do
+    [ -s "$f" ] || continue
+    echo "--- last lines of $f:" >&2
+    tail -n 15 "$f" >&2
+  done
+}
+# Fails with exit 3 when a daemon this script started has exited.
+check_alive() {
+  for name in munged slurmctld slurmd; do
+    f="$dir/$name.started-pid"
+    [ -f "$f" ] || continue
+    if ! kill -0 "$(cat "$f")" 2>/dev/null; then
+      logs
+      stop
+      cannot "$name exited at start (its log is above)"
+    fi
+  done
+}
 
 mkdir -p "$dir"
 dir=$(cd "$dir" && pwd)
@@ -51,16 +79,18 @@ setpriv --reuid=munge --regid=munge --init-groups \
   munged -F --key-file="$key" --socket="$socket" --pid-file="$dir/munge/munged.pid" \
   --seed-file="$dir/munge/munged.seed" --log-file="$dir/munge/munged.log" >"$dir/munged.out" 2>&1 &
 echo $! >"$dir/munged.started-pid"
-for _ in $(seq 50); do [ -S "$socket" ] && break; sleep 0.1; done
-[ -S "$socket" ] || { echo "munged did not start (see $dir/munged.out)" >&2; stop; exit 1; }
+while [ ! -S "$socket" ] && [ "$(date +%s)" -lt "$deadline" ]; do check_alive; sleep 0.1; done
+[ -S "$socket" ] || { logs; stop; echo "munged did not open its socket within ${timeout_s} s" >&2; exit 1; }
 
 # Ports from the directory name, so that two test clusters on one host do not collide.
 base=$(( 20000 + $(printf '%s' "$dir" | cksum | cut -d' ' -f1) % 20000 ))
-node=$(slurmd -C | sed -n 's/^\(NodeName=.*\)$/\1/p' | head -1)
+node=$(timeout 20 slurmd -C | sed -n 's/^\(NodeName=.*\)$/\1/p' | head -1) || true
+[ -n "$node" ] || { stop; cannot "slurmd -C did not describe this node"; }
 host=$(printf '%s' "$node" | sed 's/^NodeName=\([^ ]*\).*/\1/')
+# Every address is loopback, so the host name need not resolve.
 cat >"$dir/slurm.conf" <<CONF
 ClusterName=prtbaketest
-SlurmctldHost=$host
+SlurmctldHost=$host(127.0.0.1)
 SlurmUser=root
 SlurmdUser=root
 SlurmctldPort=$base
@@ -83,19 +113,22 @@ MailProg=/bin/true
 ReturnToService=2
 MinJobAge=600
 SchedulerParameters=sched_interval=1
-$node State=UNKNOWN
+$node NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=test Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 CONF
 export SLURM_CONF="$dir/slurm.conf"
 slurmctld -D -f "$SLURM_CONF" >"$dir/slurmctld.out" 2>&1 &
 echo $! >"$dir/slurmctld.started-pid"
-slurmd -D -f "$SLURM_CONF" >"$dir/slurmd.out" 2>&1 &
+slurmd -D -N "$host" -f "$SLURM_CONF" >"$dir/slurmd.out" 2>&1 &
 echo $! >"$dir/slurmd.started-pid"
-for _ in $(seq 300); do
-  state=$(sinfo -h -o %T 2>/dev/null | head -1 || true)
+state=""
+while [ "$(date +%s)" -lt "$deadline" ]; do
+  check_alive
+  state=$(timeout 5 sinfo -h -o %T 2>/dev/null | head -1 || true)
   [ "$state" = idle ] && { echo "export SLURM_CONF=$SLURM_CONF"; exit 0; }
-  sleep 0.1
+  sleep 0.2
 done
-echo "the node did not become idle (state '${state:-}'; see $dir/slurmctld.log, $dir/slurmd.log)" >&2
+logs
 stop
+echo "the node did not become idle within ${timeout_s} s (state '${state:-}'; the daemons' logs are above)" >&2
 exit 1
