@@ -14,6 +14,7 @@ cmd=${1:-}; dir=${2:-}
 [ -n "$cmd" ] && [ -n "$dir" ] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }
 
 stop() {
+  local name f pid
   for name in slurmd slurmctld munged; do
     f="$dir/$name.started-pid"
     [ -f "$f" ] || continue
@@ -43,6 +44,7 @@ deadline=$(( $(date +%s) + timeout_s ))
 
 # The daemons' last log lines, for a failure message.
 logs() {
+  local f
   for f in "$dir/munge/munged.log" "$dir/munged.out" "$dir/slurmctld.log" "$dir/slurmctld.out" "$dir/slurmd.log" "$dir/slurmd.out"; do
     [ -s "$f" ] || continue
     echo "--- last lines of $f:" >&2
@@ -51,6 +53,7 @@ logs() {
 }
 # Fails with exit 3 when a daemon this script started has exited.
 check_alive() {
+  local name f
   for name in munged slurmctld slurmd; do
     f="$dir/$name.started-pid"
     [ -f "$f" ] || continue
