@@ -49,12 +49,6 @@ inline float lut_hsum16(float16 v) {
   return c.x + c.y;
 }
 
-// Standard error of the mean of n samples from their sum and sum of squares.
-inline float lut_stderr(float sum, float sum2, float invN) {
-  float m = sum * invN;
-  return sqrt(fmax(sum2 * invN - m * m, 0.0f) * invN);
-}
-
 // ---------------------------------------------------------------------------
 // Specular (A, B). View V = (√(1 − μ²), 0, μ), normal N = +z.
 //
@@ -108,23 +102,37 @@ inline float lut_stderr(float sum, float sum2, float invN) {
 
 // count:  number of points
 // points: count × (μ, α); μ in [0, 1] (clamped), α ≥ 0 the NDF width
-// nPad:   samples rounded up to a multiple of LUT_SIMD (the table row length)
-// invN:   1 / samples
+// nPad:   this chunk's samples rounded up to a multiple of LUT_SIMD (the table row length)
+// nReal:  this chunk's samples (the mirror's weight: every sample has the same value)
 // table:  LUT_TAB_ROWS × nPad floats (lut_sampling.clh)
-// out:    count × LUT_OUT_FLOAT4S float4: (A, B, C, 0), (σ_A, σ_B, σ_C, 0)
-__kernel void lut_eval(int count, __global const float2* points, int nPad, float invN,
-                       __global const float* table, __global float4* out) {
+// split, nPad2, nReal2, table2: points split … count − 1 take this second sample set
+//         instead (one launch for two counts: the "--tolerance" pilot's first step)
+// out:    count × LUT_OUT_FLOAT4S float4 of sums (lut_sampling.clh)
+__kernel void lut_eval(int count, __global const float2* points, int nPad, float nReal,
+                       __global const float* table, int split, int nPad2, float nReal2,
+                       __global const float* table2, __global float4* out) {
   const int gid = get_global_id(0);
   if (gid >= count) return;
+  if (gid >= split) {
+    nPad = nPad2;
+    nReal = nReal2;
+    table = table2;
+  }
   const float mu = clamp(points[gid].x, 0.0f, 1.0f);
   const float alpha = fmax(points[gid].y, 0.0f);
   const float sv = sqrt(fmax(1.0f - mu * mu, 0.0f));
-  float4 mean = (float4)(0.0f), err = (float4)(0.0f);
+  float4 sums0 = (float4)(0.0f), sums1 = (float4)(0.0f), sums2 = (float4)(0.0f);
 
   if (alpha <= 0.0f) {
+    // The mirror: every sample weighs the same; GGX-form sums (Beckmann's ratio reads
+    // them through d = 1).
     const float m = 1.0f - mu, m2 = m * m, fc = m2 * m2 * m;
-    mean.x = 1.0f - fc;
-    mean.y = fc;
+#if LUT_NDF == 0
+    sums0 = (float4)((1.0f - fc) * nReal, fc * nReal, (1.0f - fc) * (1.0f - fc) * nReal, fc * fc * nReal);
+#else
+    sums0 = (float4)(nReal, (1.0f - fc) * nReal, fc * nReal, nReal);
+    sums1 = (float4)((1.0f - fc) * nReal, fc * nReal, (1.0f - fc) * (1.0f - fc) * nReal, fc * fc * nReal);
+#endif
   } else {
     // Per point: the stretched view direction of the VNDF sampler and its warp.
     const float vsx = alpha * sv, vsz = mu, vlen = rsqrt(vsx * vsx + vsz * vsz);
@@ -150,11 +158,18 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
 #endif
     // GGX: sums of w, w F_c and their squares. Beckmann (self-normalised): sums of d,
     // d y_A, d y_B, d², d² y_A, d² y_B, d² y_A², d² y_B² with y = g (1 − F_c), g F_c.
+    // Summed in blocks of LUT_BLOCK samples whose partial sums are then added to the totals
+    // S0 … S7 (see LUT_BLOCK).
+    float16 S0 = 0.0f, S1 = 0.0f, S2 = 0.0f, S3 = 0.0f;
+#if LUT_NDF == 1
+    float16 S4 = 0.0f, S5 = 0.0f, S6 = 0.0f, S7 = 0.0f;
+#endif
+    for (int kb = 0; kb < nPad; kb += LUT_BLOCK) {
     float16 s0 = 0.0f, s1 = 0.0f, s2 = 0.0f, s3 = 0.0f;
 #if LUT_NDF == 1
     float16 s4 = 0.0f, s5 = 0.0f, s6 = 0.0f, s7 = 0.0f;
 #endif
-    for (int k = 0; k < nPad; k += LUT_SIMD) {
+    for (int k = kb; k < min(kb + LUT_BLOCK, nPad); k += LUT_SIMD) {
 #if LUT_DIRS == 0
       const float16 t1sq = vload16(0, table + LUT_TAB_T1SQ * nPad + k);
       const float16 t2r = vload16(0, table + LUT_TAB_T2 * nPad + k);
@@ -230,22 +245,18 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
       s7 += d2 * yb * yb;
 #endif
     }
+    S0 += s0, S1 += s1, S2 += s2, S3 += s3;
+#if LUT_NDF == 1
+    S4 += s4, S5 += s5, S6 += s6, S7 += s7;
+#endif
+    }
 #if LUT_NDF == 0
-    const float sw = lut_hsum16(s0), sb = lut_hsum16(s1);
-    mean.x = gScale * (sw - sb) * invN;
-    mean.y = gScale * sb * invN;
-    err.x = gScale * lut_stderr(sw - sb, lut_hsum16(s2), invN);
-    err.y = gScale * lut_stderr(sb, lut_hsum16(s3), invN);
+    const float sw = lut_hsum16(S0), sb = lut_hsum16(S1);
+    sums0 = (float4)(gScale * (sw - sb), gScale * sb, gScale * gScale * lut_hsum16(S2),
+                     gScale * gScale * lut_hsum16(S3));
 #else
-    // Ratio estimate Σ d y / Σ d; its standard error by the delta method,
-    // √(Σ d² (y − Ŷ)²) / Σ d, expanded into the sums above.
-    const float sd = lut_hsum16(s0), invSd = 1.0f / sd;
-    const float ea = lut_hsum16(s1) * invSd, eb = lut_hsum16(s2) * invSd;
-    const float sd2 = lut_hsum16(s3);
-    mean.x = ea;
-    mean.y = eb;
-    err.x = sqrt(fmax(lut_hsum16(s6) - 2.0f * ea * lut_hsum16(s4) + ea * ea * sd2, 0.0f)) * invSd;
-    err.y = sqrt(fmax(lut_hsum16(s7) - 2.0f * eb * lut_hsum16(s5) + eb * eb * sd2, 0.0f)) * invSd;
+    sums0 = (float4)(lut_hsum16(S0), lut_hsum16(S1), lut_hsum16(S2), lut_hsum16(S3));
+    sums1 = (float4)(lut_hsum16(S4), lut_hsum16(S5), lut_hsum16(S6), lut_hsum16(S7));
 #endif
   }
 
@@ -255,8 +266,10 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
     const float invA = 1.0f / ac, kC = 2.0f + invA, e = 1.0f / kC;
     const float lam = rsqrt(ac), c0 = -expm1(-lam);  // exponential branch: p(c) = λ e^{−λc}/c0
     const float b0 = LUT_CLOTH_BETA0 * 0.63661977236758134f, b1 = LUT_CLOTH_BETA1 * lam / c0;
+    float16 totalC = 0.0f, totalC2 = 0.0f;
+    for (int kb = 0; kb < nPad; kb += LUT_BLOCK) {
     float16 sumC = 0.0f, sumC2 = 0.0f;
-    for (int k = 0; k < nPad; k += LUT_SIMD) {
+    for (int k = kb; k < min(kb + LUT_BLOCK, nPad); k += LUT_SIMD) {
       const float16 br = vload16(0, table + LUT_TAB_CL_BRANCH * nPad + k);
       const float16 ta = vload16(0, table + LUT_TAB_CL_A * nPad + k);
       const float16 tb = vload16(0, table + LUT_TAB_CL_B * nPad + k);
@@ -282,12 +295,13 @@ __kernel void lut_eval(int count, __global const float2* points, int nPad, float
       sumC += w;
       sumC2 += w * w;
     }
-    const float sc = lut_hsum16(sumC);
-    mean.z = sc * invN;
-    err.z = lut_stderr(sc, lut_hsum16(sumC2), invN);
+    totalC += sumC, totalC2 += sumC2;
+    }
+    sums2 = (float4)(lut_hsum16(totalC), lut_hsum16(totalC2), 0.0f, 0.0f);
   }
 #endif
 
-  out[LUT_OUT_FLOAT4S * gid] = mean;
-  out[LUT_OUT_FLOAT4S * gid + 1] = err;
+  out[LUT_OUT_FLOAT4S * gid] = sums0;
+  out[LUT_OUT_FLOAT4S * gid + 1] = sums1;
+  out[LUT_OUT_FLOAT4S * gid + 2] = sums2;
 }

@@ -8,6 +8,9 @@
 // Interreflection, bounce k → k+1 (ρ the albedo at the hit point q, T^(k)(q)
 // interpolated with barycentrics):
 //   T^(k+1)(p) = (1/π) ∫ ρ(q) T^(k)(q) max(0, n·ω) dω ≈ (1/N) Σ_{s hits q_s} ρ(q_s) T^(k)(q_s).
+// Every kernel returns the sums Σ_s over the directions it was given (at most 1024 per
+// launch); the host adds the launches up in double and divides by N, so that float
+// sums over millions of samples do not lose precision.
 //
 // Build options: SH_ORDER (1..8 or more), VISIBILITY (0: unshadowed, no BVH access;
 // 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only), BVH_PACKET (0: the
@@ -55,8 +58,8 @@
 // dirs:     N × (x, y, z, 0) local cosine-distributed directions
 // nodes, tris: the BVH (unused when VISIBILITY is 0)
 // tMax:     ray length (beyond the scene's bounding box)
-// coeffs:   V × SH_COUNT output, vertex-major
-// visible:  V output, the fraction of unoccluded directions (for the error estimate)
+// coeffs:   V × SH_COUNT output, vertex-major: Σ_s V(p, ω_s) Y_i(ω_s)
+// visible:  V output, the number of unoccluded directions (for the error estimate)
 __kernel void transport_direct(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
@@ -81,9 +84,8 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
       for (int k = 0; k < SH_COUNT; ++k) acc[k] += y[k];
     }
   }
-  const float invN = 1.0f / (float)sampleCount;
-  for (int k = 0; k < SH_COUNT; ++k) coeffs[(size_t)vi * SH_COUNT + k] = acc[k] * invN;
-  visible[vi] = (float)seen * invN;
+  for (int k = 0; k < SH_COUNT; ++k) coeffs[(size_t)vi * SH_COUNT + k] = acc[k];
+  visible[vi] = (float)seen;
 }
 
 // Visibility of every (vertex, sample) ray, for the kernel-vs-reference tests.
@@ -106,7 +108,7 @@ __kernel void transport_visibility(int vertexCount, int sampleCount, __global co
 // indices: T × (i0, i1, i2, 0) vertex indices of every mesh triangle
 // albedo:  V × (r, g, b, 0) linear albedo (CHANNELS = 1 reads r)
 // prev:    V × CHANNELS × SH_COUNT, the previous bounce T^(k)
-// next:    V × CHANNELS × SH_COUNT output, T^(k+1)
+// next:    V × CHANNELS × SH_COUNT output, the sums of T^(k+1)
 __kernel void transport_bounce(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
@@ -144,22 +146,7 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
       }
     }
   }
-  const float invN = 1.0f / (float)sampleCount;
-  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
-}
-
-// Visibility of a list of rays, one work-item per ray (the visibility quadtree of
-// "--tolerance", host/src/transport_quadtree.cpp): ray r leaves vertex as_int(rays[r].w)
-// in the direction rays[r].xyz of that vertex's frame. out: 1 = unoccluded.
-__kernel void transport_ray_list(int rayCount, __global const float4* rays, __global const float4* origins,
-                                 __global const float4* frames, __global const BvhNode* nodes,
-                                 __global const float4* tris, float tMax, __global uchar* out) {
-  const int r = get_global_id(0);
-  if (r >= rayCount) return;
-  const float4 ray = rays[r];
-  const int vi = as_int(ray.w);
-  const float3 d = sampling_to_world(frames + (size_t)vi * 3, (float4)(ray.xyz, 0.0f));
-  out[r] = bvh_occluded(nodes, tris, origins[vi].xyz, d, tMax) ? 0 : 1;
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
 }
 
 #else  // BVH_PACKET
@@ -209,16 +196,15 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
     }
   }
-  const float invN = 1.0f / (float)sampleCount;
   // Fixed-order horizontal sums: deterministic.
   for (int k = 0; k < SH_COUNT; ++k) {
     float sum = 0.0f;
     for (int j = 0; j < BVH_PACKET; ++j) sum += ((float*)&acc[k])[j];
-    coeffs[(size_t)vi * SH_COUNT + k] = sum * invN;
+    coeffs[(size_t)vi * SH_COUNT + k] = sum;
   }
   int total = 0;
   for (int j = 0; j < BVH_PACKET; ++j) total += ((int*)&seen)[j];
-  visible[vi] = (float)total * invN;
+  visible[vi] = (float)total;
 }
 
 // Packet form of transport_visibility (the production visibility, for the tests).
@@ -300,32 +286,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
       }
     }
   }
-  const float invN = 1.0f / (float)sampleCount;
-  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k] * invN;
-}
-
-// Packet form of transport_ray_list: work-item p traces rays p·BVH_PACKET … + BVH_PACKET − 1,
-// which leave one vertex (the host pads each vertex's rays to whole packets).
-__kernel void transport_ray_list_packet(int packetCount, __global const float4* rays, __global const float4* origins,
-                                        __global const float4* frames, __global const BvhNode* nodes,
-                                        __global const float4* tris, float tMax, __global uchar* out) {
-  const int p = get_global_id(0);
-  if (p >= packetCount) return;
-  __global const float4* r = rays + (size_t)p * BVH_PACKET;
-  const int vi = as_int(r[0].w);
-  __global const float4* frame = frames + (size_t)vi * 3;
-  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
-  floatP lx, ly, lz;
-  for (int j = 0; j < BVH_PACKET; ++j) {
-    ((float*)&lx)[j] = r[j].x;
-    ((float*)&ly)[j] = r[j].y;
-    ((float*)&lz)[j] = r[j].z;
-  }
-  const floatP dx = t.x * lx + b.x * ly + n.x * lz;
-  const floatP dy = t.y * lx + b.y * ly + n.y * lz;
-  const floatP dz = t.z * lx + b.z * ly + n.z * lz;
-  const intP blocked = bvh_packet_occluded(nodes, tris, origins[vi].xyz, dx, dy, dz, tMax, (intP)(-1));
-  for (int j = 0; j < BVH_PACKET; ++j) out[(size_t)p * BVH_PACKET + j] = ((int*)&blocked)[j] ? 0 : 1;
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
 }
 
 #endif  // BVH_PACKET

@@ -31,7 +31,7 @@ int runLut(const CommandLine& cl) {
   if (cl.has("max-samples") && !cl.has("tolerance"))
     throw UsageError("--max-samples", "only applies with --tolerance");
   if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
-  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, -(1L << 30), 1L << 30));
+  o.toleranceMaxSamples = int(cl.getInt("max-samples", kLutMaxSamples, -(1L << 30), 1L << 30));
   validateLutOptions(o);
 
   Runtime rt(cl.device());
@@ -41,10 +41,11 @@ int runLut(const CommandLine& cl) {
   char line[256];
   if (o.tolerance > 0) {
     std::snprintf(line, sizeof line,
-                  "lut %dx%d, adaptive cubature: %.4g integrand evaluations in all, estimated error max %.3g mean "
-                  "%.3g, %zu texels at the cap; kernel %.2f ms, build %.2f s -> %s",
-                  lut.size, lut.size, double(lut.totalSamples), lut.errorEstimateMax, lut.errorEstimateMean,
-                  lut.texelsAtCap, lut.kernelSeconds * 1e3, lut.buildSeconds, out.c_str());
+                  "lut %dx%d, --tolerance %g: %d samples per texel (pilot of %zu texels, predicted 95th-percentile "
+                  "error %.2e%s); kernel %.2f ms, build %.2f s -> %s",
+                  lut.size, lut.size, o.tolerance, lut.tolerance.samples, lut.tolerance.pilotItems,
+                  lut.tolerance.predictedError, lut.tolerance.capped ? ", capped by --max-samples" : "",
+                  lut.kernelSeconds * 1e3, lut.buildSeconds, out.c_str());
   } else {
     std::snprintf(line, sizeof line, "lut %dx%d, %d samples: kernel %.2f ms, build %.2f s, std error max %.2e -> %s",
                   lut.size, lut.size, o.samples, lut.kernelSeconds * 1e3, lut.buildSeconds, lut.stdErrMax,
@@ -65,8 +66,9 @@ PRTBAKE_COMMAND(Command{
         {"output", true, "output OpenEXR path (also -o); the sidecar is OUT.json"},
         {"size", true, "table size N (N x N texels, 1..8192; default 128)"},
         {"samples", true, "samples per texel (default 1024)"},
-        {"tolerance", true, "adaptive cubature per texel until its estimated error < E in every channel"},
-        {"max-samples", true, "with --tolerance: the most integrand evaluations per texel (1024..2^20, default 65536)"},
+        {"tolerance", true, "the samples per texel that bring 95 % of the texels within E in every channel, "
+                            "predicted from a pilot (docs/accuracy.md)"},
+        {"max-samples", true, "with --tolerance: the most samples per texel (64..2^20, default 2^20)"},
         {"ndf", true, "ggx (default) or beckmann"},
         {"visibility", true, "smith-correlated (default), smith-separable or schlick-ggx (k = alpha/2)"},
         {"multiscatter", false, "B channel: E = A + B for multiple-scattering compensation (Filament)"},

@@ -36,7 +36,7 @@ int runTransport(const CommandLine& cl) {
   if (cl.has("max-samples") && !cl.has("tolerance"))
     throw UsageError("--max-samples", "only applies with --tolerance");
   if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
-  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, kTransportToleranceMinSamples, 1 << 24));
+  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, 2 * kTolerancePilotStart, 1 << 24));
   if (cl.has("sampler")) o.sampler = parseTransportSampler(cl.get("sampler"));
   o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
   o.bounces = int(cl.getInt("bounces", 3, 1, 64));
@@ -83,9 +83,11 @@ int runTransport(const CommandLine& cl) {
                   double(r.totalSamples));
     status(cl, line);
   }
-  if (o.tolerance > 0) {
-    std::snprintf(line, sizeof line, "transport: adaptive: estimated error max %.3g mean %.3g, %zu vertices at the cap",
-                  r.maxErrorEstimate, r.meanErrorEstimate, r.verticesAtCap);
+  for (size_t k = 0; k < r.tolerance.size(); ++k) {
+    const ToleranceReport& t = r.tolerance[k];
+    std::snprintf(line, sizeof line, "transport: --tolerance, %s: %s, %d samples per vertex (predicted 95th-percentile "
+                  "error %.2e of %.2e%s)", k == 0 ? "direct term" : ("bounce " + std::to_string(k)).c_str(),
+                  t.strategy.c_str(), t.samples, t.predictedError, t.tolerance, t.capped ? ", capped" : "");
     status(cl, line);
   }
   return 0;
@@ -104,8 +106,8 @@ PRTBAKE_COMMAND(Command{
      {"bounce-tolerance", true, "stop when a bounce adds less than this (default 1e-4; 0: never)"},
      {"order", true, "SH order 1..8 (default 3)"},
      {"samples", true, "directions per vertex (default 1024)"},
-     {"tolerance", true, "adaptive samples per vertex until every coefficient's estimated error < E "
-                       "(unshadowed/shadowed)"},
+     {"tolerance", true, "the samples per vertex that bring 95 % of the vertices within E, predicted from a pilot "
+                       "(docs/accuracy.md)"},
      {"max-samples", true, "with --tolerance: the most samples per vertex (default 65536)"},
      {"sampler", true, "hammersley (default) | stratified | random"},
      {"seed", true, "sample set seed (default 0)"},

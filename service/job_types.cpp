@@ -265,9 +265,8 @@ std::vector<JobType> makeJobTypes() {
     if (raw.contains("bounces") && p["mode"] != "interreflected")
       problems.push_back({"bounces", "only applies to mode 'interreflected'"});
     // Each bounce reads the previous bounce of every vertex: no vertex range can be
-    // computed alone, so an interreflected job runs whole in one shard.
-    if (raw.contains("split") && raw["split"] == json(true) && raw.contains("tolerance"))
-      problems.push_back({"split", "cannot be combined with tolerance (adaptive sampling runs whole meshes)"});
+    // computed alone, so an interreflected job runs whole in one shard. (With a
+    // tolerance every shard runs the same pilot over the whole mesh: the same counts.)
     if (raw.contains("split") && raw["split"] == json(true) && p["mode"] == "interreflected")
       problems.push_back({"split", "interreflected jobs cannot be split by vertices (each bounce needs every "
                                    "vertex's previous bounce); remove split to run the job whole in one shard"});

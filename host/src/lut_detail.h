@@ -1,5 +1,4 @@
-// Private: pieces of the LUT driver shared by lut.cpp, lut_reference.cpp and
-// lut_adaptive.cpp.
+// Private: pieces of the LUT driver shared by lut.cpp and lut_reference.cpp.
 #pragma once
 
 #include <cstdint>
@@ -14,7 +13,5 @@ namespace prtbake::detail {
 void finishLut(LutResult& r, const std::vector<float>& cloth, const std::vector<float>& stdErr);
 // The texel centres of an n×n table, row major.
 std::vector<LutPoint> texelPoints(int n);
-// The adaptive driver (LutOptions::tolerance > 0).
-LutResult computeLutAdaptive(Runtime& rt, const LutOptions& o);
 
 }  // namespace prtbake::detail

@@ -4,6 +4,7 @@
 
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "tolerance.h"
 #include "prtbake/exr.h"
 #include "prtbake/lut.h"
 
@@ -72,27 +73,8 @@ nlohmann::json sidecar(const LutResult& lut, const std::string& exrPath, bool ha
       {"meaning", "Monte Carlo standard error sigma/sqrt(n) per texel, max over channels; the low-discrepancy "
                   "points converge faster, so this bounds the error loosely (docs/lut.md)"}};
   if (o.tolerance > 0) {
-    nlohmann::json hist = nlohmann::json::object();
-    for (size_t k = 0; k < lut.samplesHistogram.size(); ++k)
-      if (lut.samplesHistogram[k]) hist[std::to_string(uint64_t(1) << k)] = lut.samplesHistogram[k];
-    j["samples"] = "adaptive";
-    j["parameters"]["samples"] = "adaptive";
     j["parameters"]["tolerance"] = o.tolerance;
-    j["method"] = "adaptive cubature: 3x3 Gauss-Legendre cells over the half vector (pieces as the reference), "
-                  "the cells with the largest estimates split until the texel's sum is below the tolerance";
-    j["adaptive"] = {{"tolerance", o.tolerance},
-                     {"min_samples", kLutToleranceMinSamples},
-                     {"root_cells", kLutRootCells},
-                     {"samples_meaning", "integrand evaluations per texel; histogram key k: texels with [k, 2k)"},
-                     {"estimate", "sum over the texel's leaf cells of max over channels |Q(cell) - sum of Q(children)|, "
-                                  "Q the 3x3 Gauss-Legendre rule (root cells: at least 0.25 x the children's summed distance "
-                                  "from the quadrants of Q's interpolant); the table holds the children's sums"},
-                     {"achieved_error_max", lut.errorEstimateMax},
-                     {"achieved_error_mean", lut.errorEstimateMean},
-                     {"samples_total", lut.totalSamples},
-                     {"samples_histogram", hist},
-                     {"cap", o.toleranceMaxSamples},
-                     {"texels_at_cap", lut.texelsAtCap}};
+    j["tolerance"] = detail::toleranceJson(lut.tolerance);
   }
   nlohmann::json t = {{"kernel_s", lut.kernelSeconds}, {"build_s", lut.buildSeconds}, {"compute_s", lut.totalSeconds}};
   if (commandSeconds >= 0) t["command_s"] = commandSeconds;

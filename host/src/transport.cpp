@@ -1,14 +1,16 @@
-// Transport on the OpenCL device: BVH upload, direct term, bounces (see transport.h).
+// Transport on the OpenCL device: BVH upload, direct term, bounces, and "--tolerance"
+// (see transport.h and prtbake/tolerance.h).
 #include "prtbake/transport.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
-#include "transport_direct.h"
+#include "tolerance.h"
 #include "transport_setup.h"
 
 namespace prtbake {
@@ -20,76 +22,169 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
 // scalar; 16 keeps the groups numerous enough to balance over the cores.
 constexpr size_t kLocalSize = 16;
+// Directions per launch: the kernels sum at most this many in float (16 lanes of a
+// packet: 64 additions each); the host adds the launches up in double. A float run of
+// additions of near-equal values (Y_0 over the visible rays) drifts with its length: the
+// BRDF table's 1024 additions per lane biased it by 1.4e-5 (measured), 64 keep it below
+// the transport's error at 2^24 samples. Default counts (1024) take one launch.
+constexpr int kSampleChunk = 1024;
 
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
-struct DeviceScene {
-  cl::Buffer origins, frames, dirs, dirsSoA, nodes, tris;
-  int paddedCount = 0;
-  float tMax = 0;
-  std::vector<uint8_t> unoccludable;  // per vertex (filled when the BVH is built)
-};
-
-void setCommonArgs(cl::Kernel& k, int nv, int ns, const DeviceScene& s) {
-  k.setArg(0, nv);
-  k.setArg(1, ns);
-  k.setArg(2, s.origins);
-  k.setArg(3, s.frames);
-  k.setArg(4, s.dirs);
-  k.setArg(5, s.nodes);
-  k.setArg(6, s.tris);
-  k.setArg(7, s.tMax);
-}
-
-DeviceScene prepare(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup,
-                    bool needBvh, TransportResult& r) {
-  DeviceScene s;
-  s.tMax = setup.tMax;
-  s.origins = rt.upload(setup.origins);
-  s.frames = rt.upload(setup.frames);
-  s.dirs = rt.upload(setup.dirs);
-  s.dirsSoA = rt.upload(detail::packetDirections(setup.dirs, s.paddedCount));
-  if (needBvh) {
-    const auto t0 = Clock::now();
-    const Bvh bvh = buildBvh(mesh);
-    r.bvhSeconds = since(t0);
-    r.bvhNodes = bvh.nodes.size();
-    r.degenerateTriangles = bvh.degenerateTriangles;
-    s.nodes = rt.upload(bvh.nodes);
-    s.tris = rt.upload(bvh.packed);
-    s.unoccludable = detail::unoccludableFromBvh(mesh, bvh, setup);
-    if (bvh.nodes.empty()) {
-      // Every triangle has zero area: nothing can occlude. One leaf whose empty box
-      // (min > max) no ray enters.
-      const std::vector<Bvh::Node> one{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}};
-      s.nodes = rt.upload(one);
-      s.tris = rt.upload(std::vector<float>(12, 0.0f));
+// The scene on the device and the kernels over lists of vertices. Each call takes
+// `samples` directions per vertex (the samples-point set of the seed and sampler) in
+// launches of at most kSampleChunk directions and returns means in double.
+class Tracer {
+ public:
+  Tracer(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup, bool visibility,
+         TransportResult& r)
+      : rt_(rt), mesh_(mesh), o_(o), setup_(setup), visibility_(visibility), nc_(o.order * o.order) {
+    if (visibility) {
+      const auto t0 = Clock::now();
+      const Bvh bvh = buildBvh(mesh);
+      r.bvhSeconds = since(t0);
+      r.bvhNodes = bvh.nodes.size();
+      r.degenerateTriangles = bvh.degenerateTriangles;
+      unoccludable_ = detail::unoccludableFromBvh(mesh, bvh, setup);
+      if (bvh.nodes.empty()) {
+        // Every triangle has zero area: nothing can occlude. One leaf whose empty box
+        // (min > max) no ray enters.
+        nodes_ = rt.upload(std::vector<Bvh::Node>{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}});
+        tris_ = rt.upload(std::vector<float>(12, 0.0f));
+      } else {
+        nodes_ = rt.upload(bvh.nodes);
+        tris_ = rt.upload(bvh.packed);
+      }
+    } else {
+      unoccludable_.assign(mesh.vertexCount(), 0);
+      nodes_ = rt.upload(std::vector<float>(8, 0.0f));
+      tris_ = rt.upload(std::vector<float>(12, 0.0f));
     }
-  } else {
-    s.nodes = rt.upload(std::vector<float>(8, 0.0f));
-    s.tris = rt.upload(std::vector<float>(12, 0.0f));
   }
-  return s;
-}
 
-std::string options(int order, bool visibility, int channels, int packet = 0) {
-  return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
-         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packet);
-}
+  const std::vector<uint8_t>& unoccludable() const { return unoccludable_; }
 
-// The direct-term (or visibility) kernel: packet or scalar form, arguments set.
-cl::Kernel directKernel(Runtime& rt, const TransportOptions& o, bool visibility, const DeviceScene& s, int nv,
-                        const char* scalarName, const char* packetName, int paddedCountArg) {
-  const bool packet = o.packetWidth > 0;
-  cl::Kernel k = rt.kernel("transport.cl", packet ? packetName : scalarName,
-                           options(o.order, visibility, 1, o.packetWidth));
-  setCommonArgs(k, nv, o.samples, s);
-  if (packet) {
-    k.setArg(4, s.dirsSoA);
-    k.setArg(paddedCountArg, s.paddedCount);
+  // T^(0) of `vertices` (order² each) and their unoccluded fractions. Unoccludable
+  // vertices are marked in their origin's w: the kernel traces no rays for them.
+  std::vector<double> direct(const std::vector<uint32_t>& vertices, int samples, std::vector<double>* visible,
+                             TransportResult& r) {
+    const int nv = int(vertices.size());
+    std::vector<double> sums(size_t(nv) * nc_, 0.0), seen(size_t(nv), 0.0);
+    if (nv > 0) {
+      uploadVertices(vertices);
+      cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4), vis(rt_.context(), CL_MEM_WRITE_ONLY, seen.size() * 4);
+      cl::Kernel k = kernel("transport_direct", "transport_direct_packet", 1);
+      k.setArg(8, out);
+      k.setArg(9, vis);
+      std::vector<float> part(sums.size()), partSeen(seen.size());
+      forEachChunk(k, samples, nv, 10, [&] {
+        rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
+        rt_.queue().enqueueReadBuffer(vis, CL_TRUE, 0, partSeen.size() * 4, partSeen.data());
+        for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
+        for (size_t i = 0; i < seen.size(); ++i) seen[i] += partSeen[i];
+      });
+      size_t traced = 0;
+      for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
+      if (visibility_) r.rays += uint64_t(traced) * uint64_t(samples);
+      r.totalSamples += uint64_t(nv) * uint64_t(samples);
+    }
+    for (double& x : sums) x /= samples;
+    if (visible) {
+      for (double& x : seen) x /= samples;
+      *visible = std::move(seen);
+    }
+    return sums;
   }
-  return k;
-}
+
+  // T^(k+1) of `vertices` (channels × order² each) from T^(k) of every vertex in `prev`.
+  std::vector<double> bounce(const std::vector<uint32_t>& vertices, int samples, int channels,
+                             const cl::Buffer& prev, TransportResult& r) {
+    const int nv = int(vertices.size()), stride = channels * nc_;
+    std::vector<double> sums(size_t(nv) * stride, 0.0);
+    if (nv > 0) {
+      if (!indices_()) {
+        std::vector<int32_t> idx(mesh_.triangleCount() * 4, 0);
+        for (size_t t = 0; t < mesh_.triangleCount(); ++t)
+          for (int c = 0; c < 3; ++c) idx[4 * t + c] = int32_t(mesh_.indices[3 * t + c]);
+        indices_ = rt_.upload(idx);
+        albedo_ = rt_.upload(detail::vertexAlbedo(mesh_, o_));
+      }
+      uploadVertices(vertices);
+      cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4);
+      cl::Kernel k = kernel("transport_bounce", "transport_bounce_packet", channels);
+      k.setArg(8, indices_);
+      k.setArg(9, albedo_);
+      k.setArg(10, prev);
+      k.setArg(11, out);
+      std::vector<float> part(sums.size());
+      forEachChunk(k, samples, nv, 12, [&] {
+        rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
+        for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
+      });
+      r.rays += uint64_t(nv) * uint64_t(samples);
+      r.totalSamples += uint64_t(nv) * uint64_t(samples);
+    }
+    for (double& x : sums) x /= samples;
+    return sums;
+  }
+
+ private:
+  cl::Kernel kernel(const char* scalarName, const char* packetName, int channels) {
+    const bool packet = o_.packetWidth > 0;
+    cl::Kernel k = rt_.kernel("transport.cl", packet ? packetName : scalarName,
+                              "-DSH_ORDER=" + std::to_string(o_.order) + " -DVISIBILITY=" + (visibility_ ? "1" : "0") +
+                                  " -DCHANNELS=" + std::to_string(channels) +
+                                  " -DBVH_PACKET=" + std::to_string(o_.packetWidth));
+    k.setArg(2, origins_);
+    k.setArg(3, frames_);
+    k.setArg(5, nodes_);
+    k.setArg(6, tris_);
+    k.setArg(7, setup_.tMax);
+    return k;
+  }
+
+  // Origins (w = 1: unoccludable) and frames of the listed vertices.
+  void uploadVertices(const std::vector<uint32_t>& vertices) {
+    std::vector<float> origins(vertices.size() * 4), frames(vertices.size() * 12);
+    for (size_t i = 0; i < vertices.size(); ++i) {
+      std::copy_n(&setup_.origins[4 * size_t(vertices[i])], 4, &origins[4 * i]);
+      std::copy_n(&setup_.frames[12 * size_t(vertices[i])], 12, &frames[12 * i]);
+      origins[4 * i + 3] = unoccludable_[vertices[i]] ? 1.0f : 0.0f;
+    }
+    origins_ = rt_.upload(origins);
+    frames_ = rt_.upload(frames);
+  }
+
+  // Launches `k` over nv vertices for each chunk of the direction set, then `collect`.
+  // paddedArg: the packet kernels' argument index of the padded direction count.
+  template <class Collect>
+  void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, Collect&& collect) {
+    const bool packet = o_.packetWidth > 0;
+    k.setArg(0, nv);
+    for (int first = 0; first < samples; first += kSampleChunk) {
+      const int n = std::min(kSampleChunk, samples - first);
+      std::vector<float> dirs = detail::directionChunk(samples, first, n, o_.seed, o_.sampler);
+      int padded = 0;
+      if (packet) dirs = detail::packetDirections(dirs, padded);
+      const cl::Buffer d = rt_.upload(dirs);
+      k.setArg(1, n);
+      k.setArg(4, d);
+      if (packet) k.setArg(paddedArg, padded);
+      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
+                                       cl::NDRange(kLocalSize));
+      collect();
+    }
+  }
+
+  Runtime& rt_;
+  const Mesh& mesh_;
+  const TransportOptions& o_;
+  const detail::RaySetup& setup_;
+  bool visibility_;
+  int nc_;
+  std::vector<uint8_t> unoccludable_;
+  cl::Buffer nodes_, tris_, origins_, frames_, indices_, albedo_;
+};
 
 // The size of the requested vertex range; throws UsageError when it leaves the mesh
 // or splits an interreflected job.
@@ -108,140 +203,162 @@ size_t rangeSize(const Mesh& mesh, const TransportOptions& o) {
   return count;
 }
 
+bool hasNormal(const detail::RaySetup& s, size_t v) {
+  return s.frames[12 * v + 8] != 0 || s.frames[12 * v + 9] != 0 || s.frames[12 * v + 10] != 0;
+}
+
+// The count for one term under --tolerance: the pilot over (at most 256 of) the sampled
+// vertices of the whole mesh, `evaluate` giving their values at N samples.
+int toleranceCount(const std::vector<uint32_t>& sampled, size_t stride, double tolerance, const TransportOptions& o,
+                   const std::function<std::vector<double>(const std::vector<uint32_t>&, int)>& evaluate,
+                   TransportResult& r) {
+  std::vector<uint32_t> pilot;
+  for (size_t i : detail::pilotSubset(sampled.size())) pilot.push_back(sampled[i]);
+  auto each = [&](const std::vector<int>& counts) {
+    std::vector<std::vector<double>> out;
+    for (int n : counts) out.push_back(evaluate(pilot, n));
+    return out;
+  };
+  ToleranceReport rep =
+      detail::runTolerancePilot(each, stride, tolerance, o.toleranceMaxSamples, int(std::max(o.packetWidth, 1)));
+  rep.items = sampled.size();
+  r.tolerance.push_back(rep);
+  return rep.samples;
+}
+
 }  // namespace
 
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
   const auto tStart = Clock::now();
   detail::checkTransportOptions(o);
-  if (o.tolerance > 0) {
-    if (o.firstVertex != 0 || (o.vertexCount && *o.vertexCount != mesh.vertexCount()))
-      throw UsageError("tolerance", "adaptive sampling computes whole meshes only (no vertex range)");
-    return detail::computeTransportAdaptive(rt, mesh, o);  // transport_adaptive.cpp
-  }
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   TransportResult r;
   r.order = o.order;
   r.samples = o.samples;
   r.device = rt.deviceLabel();
   const int nc = o.order * o.order;
-  const size_t first = o.firstVertex;
-  const size_t count = rangeSize(mesh, o);
-  const int nv = int(count);
+  const size_t first = o.firstVertex, count = rangeSize(mesh, o), nvAll = mesh.vertexCount();
   r.vertexCount = count;
   r.firstVertex = first;
-  const bool rgb = detail::transportIsRgb(mesh, o);
-  r.channels = rgb ? 3 : 1;
+  r.channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
   if (count == 0) {
     r.totalSeconds = since(tStart);
     return r;
   }
-  detail::RaySetup setup = detail::makeRaySetup(mesh, o);
-  if (count != mesh.vertexCount()) {
-    // Keep the range's origins and frames (computed from global indices); the BVH and
-    // everything else stay those of the whole mesh.
-    setup.origins.assign(setup.origins.begin() + 4 * first, setup.origins.begin() + 4 * (first + count));
-    setup.frames.assign(setup.frames.begin() + 12 * first, setup.frames.begin() + 12 * (first + count));
-    setup.verticesWithoutNormal = 0;
-    for (size_t v = 0; v < count; ++v)
-      if (setup.frames[12 * v + 8] == 0 && setup.frames[12 * v + 9] == 0 && setup.frames[12 * v + 10] == 0)
-        ++setup.verticesWithoutNormal;
-  }
-  r.verticesWithoutNormal = setup.verticesWithoutNormal;
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
+  for (size_t v = first; v < first + count; ++v) r.verticesWithoutNormal += hasNormal(setup, v) ? 0 : 1;
   const bool visibility = o.mode != TransportMode::Unshadowed;
-  DeviceScene scene = prepare(rt, mesh, o, setup, visibility, r);
-
-  auto& q = rt.queue();
-  const cl::NDRange global(roundUp(size_t(nv), kLocalSize)), local(kLocalSize);
-  cl::Buffer direct(rt.context(), CL_MEM_READ_WRITE, size_t(nv) * nc * 4);
-  cl::Buffer visible(rt.context(), CL_MEM_WRITE_ONLY, size_t(nv) * 4);
-  cl::Kernel kd = directKernel(rt, o, visibility, scene, nv, "transport_direct", "transport_direct_packet", 10);
-  kd.setArg(8, direct);
-  kd.setArg(9, visible);
+  Tracer tracer(rt, mesh, o, setup, visibility, r);
   const auto tKernel = Clock::now();
-  std::vector<float> t0(size_t(nv) * nc), vis(static_cast<size_t>(nv));
-  // scene.unoccludable is indexed by the whole mesh's vertices; this call covers [first, first + nv).
-  auto unoccludable = [&](int v) { return scene.unoccludable.empty() ? uint8_t(0) : scene.unoccludable[first + size_t(v)]; };
-  for (int v = 0; v < nv; ++v) r.verticesUnoccludable += unoccludable(v);
-  if (r.verticesUnoccludable > 0) {
-    // Unoccludable vertices are marked in the origins' w (transport.cl): the same launch
-    // computes them without rays, with the same directions as every other vertex.
-    std::vector<float> marked = setup.origins;
-    for (int v = 0; v < nv; ++v)
-      if (unoccludable(v)) marked[4 * size_t(v) + 3] = 1.0f;
-    scene.origins = rt.upload(marked);
-    kd.setArg(2, scene.origins);
-  }
-  q.enqueueNDRangeKernel(kd, cl::NullRange, global, local);
-  q.enqueueReadBuffer(direct, CL_TRUE, 0, t0.size() * 4, t0.data());
-  q.enqueueReadBuffer(visible, CL_TRUE, 0, vis.size() * 4, vis.data());
-  r.totalSamples = uint64_t(nv) * uint64_t(o.samples);
-  if (visibility) r.rays += uint64_t(nv - int(r.verticesUnoccludable)) * uint64_t(o.samples);
+  std::vector<uint32_t> range(count);
+  for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);
+  for (uint32_t v : range) r.verticesUnoccludable += tracer.unoccludable()[v];
 
-  // Standard error of the direct term (see transport.h).
-  r.stdError.assign(size_t(nv), 0.0f);
+  // The direct term T^(0) of the range, and the vertices that are sampled.
+  std::vector<double> t0, vis;
+  std::vector<uint32_t> sampled = range;  // every vertex, or those that need samples
+  const bool tolerance = o.tolerance > 0;
+  if (!tolerance) {
+    t0 = tracer.direct(range, o.samples, &vis, r);
+  } else {
+    // Closed form where nothing can be in the way (zero for a vertex without a normal);
+    // the others from the predicted count.
+    auto needsSamples = [&](uint32_t v) { return visibility && hasNormal(setup, v) && !tracer.unoccludable()[v]; };
+    std::vector<uint32_t> sampledAll;
+    for (uint32_t v = 0; v < nvAll; ++v)
+      if (needsSamples(v)) sampledAll.push_back(v);
+    sampled.clear();
+    for (uint32_t v : range)
+      if (needsSamples(v)) sampled.push_back(v);
+    t0.assign(count * nc, 0.0);
+    vis.assign(count, 1.0);
+    for (size_t i = 0; i < count; ++i)
+      if (hasNormal(setup, range[i]) && !needsSamples(range[i])) {
+        const float* n = &setup.frames[12 * size_t(range[i]) + 8];
+        const std::vector<double> c = clampedCosineProjected(o.order, n[0], n[1], n[2]);
+        std::copy(c.begin(), c.end(), t0.begin() + std::ptrdiff_t(i * nc));
+      }
+    const double share = o.mode == TransportMode::Interreflected ? o.tolerance / 2 : o.tolerance;
+    r.samples = 0;
+    if (!sampledAll.empty()) {
+      r.samples = toleranceCount(sampledAll, nc, share, o,
+                                 [&](const std::vector<uint32_t>& vs, int n) { return tracer.direct(vs, n, nullptr, r); }, r);
+      std::vector<double> sVis;
+      const std::vector<double> s = tracer.direct(sampled, r.samples, &sVis, r);
+      for (size_t j = 0, i = 0; i < count; ++i)
+        if (j < sampled.size() && sampled[j] == range[i]) {
+          std::copy_n(s.begin() + std::ptrdiff_t(j * nc), nc, t0.begin() + std::ptrdiff_t(i * nc));
+          vis[i] = sVis[j++];
+        }
+    } else {
+      ToleranceReport rep;
+      rep.tolerance = share;
+      rep.strategy = "closed form";
+      rep.why = visibility ? "no vertex can be occluded: each takes the Funk-Hecke projection of its clamped cosine"
+                           : "unshadowed transport is the Funk-Hecke projection of the clamped cosine";
+      rep.items = nvAll;
+      r.tolerance.push_back(rep);
+    }
+  }
+
+  // Standard error of the direct term (see transport.h), over the sampled vertices.
+  r.stdError.assign(count, 0.0f);
   double sumErr = 0;
-  for (int v = 0; v < nv; ++v) {
+  const int nSamples = std::max(r.samples, 1);
+  std::vector<char> isSampled(nvAll, tolerance ? 0 : 1);
+  for (uint32_t v : sampled) isSampled[v] = 1;
+  for (size_t i = 0; i < count; ++i) {
+    if (!isSampled[range[i]]) continue;
     double norm2 = 0;
-    for (int k = 0; k < nc; ++k) norm2 += double(t0[size_t(v) * nc + k]) * t0[size_t(v) * nc + k];
-    const double var = nc / (4 * kPi) * vis[v] - norm2;
-    const double se = std::sqrt(std::max(0.0, var) / o.samples);
-    r.stdError[v] = float(se);
+    for (int k = 0; k < nc; ++k) norm2 += t0[i * nc + k] * t0[i * nc + k];
+    const double se = std::sqrt(std::max(0.0, nc / (4 * kPi) * vis[i] - norm2) / nSamples);
+    r.stdError[i] = float(se);
     r.maxStdError = std::max(r.maxStdError, se);
     sumErr += se;
   }
-  r.meanStdError = nv ? sumErr / nv : 0;
+  r.meanStdError = sumErr / double(count);
 
   if (o.mode != TransportMode::Interreflected) {
-    r.coeffs = std::move(t0);
+    r.coeffs.assign(t0.begin(), t0.end());
   } else {
+    // Bounces over the whole mesh (count == nvAll): T^(k+1) from T^(k), until one adds
+    // less than bounceTolerance.
     const int ch = r.channels, stride = ch * nc;
-    std::vector<float> prev(size_t(nv) * stride);
-    for (int v = 0; v < nv; ++v)
+    std::vector<float> prev(nvAll * stride);
+    for (size_t v = 0; v < nvAll; ++v)
       for (int c = 0; c < ch; ++c)
-        for (int k = 0; k < nc; ++k) prev[size_t(v) * stride + c * nc + k] = t0[size_t(v) * nc + k];
+        for (int k = 0; k < nc; ++k) prev[v * stride + c * nc + k] = float(t0[v * nc + k]);
     std::vector<double> total(prev.begin(), prev.end());
     if (o.keepBounces) r.bounceCoeffs.push_back(prev);
-    // Triangle indices and albedo for the gather.
-    std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
-    for (size_t t = 0; t < mesh.triangleCount(); ++t)
-      for (int k = 0; k < 3; ++k) idx[4 * t + k] = int32_t(mesh.indices[3 * t + k]);
-    cl::Buffer idxBuf = rt.upload(idx);
-    cl::Buffer albedoBuf = rt.upload(detail::vertexAlbedo(mesh, o));
-    cl::Buffer prevBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
-    cl::Buffer nextBuf(rt.context(), CL_MEM_READ_WRITE, prev.size() * 4);
-    q.enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
-    const bool packet = o.packetWidth > 0;
-    cl::Kernel kb = rt.kernel("transport.cl", packet ? "transport_bounce_packet" : "transport_bounce",
-                              options(o.order, true, ch, o.packetWidth));
-    setCommonArgs(kb, nv, o.samples, scene);
-    if (packet) {
-      kb.setArg(4, scene.dirsSoA);
-      kb.setArg(12, scene.paddedCount);
-    }
-    kb.setArg(8, idxBuf);
-    kb.setArg(9, albedoBuf);
-    std::vector<float> next(prev.size());
+    cl::Buffer prevBuf(rt.context(), CL_MEM_READ_ONLY, prev.size() * 4);
     for (int b = 1; b <= o.bounces; ++b) {
-      kb.setArg(10, prevBuf);
-      kb.setArg(11, nextBuf);
-      q.enqueueNDRangeKernel(kb, cl::NullRange, global, local);
-      q.enqueueReadBuffer(nextBuf, CL_TRUE, 0, next.size() * 4, next.data());
-      r.rays += uint64_t(nv) * uint64_t(o.samples);
+      rt.queue().enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
+      auto evaluate = [&](const std::vector<uint32_t>& vs, int n) { return tracer.bounce(vs, n, ch, prevBuf, r); };
+      std::vector<double> next(prev.size(), 0.0);
+      if (!tolerance) {
+        next = evaluate(range, o.samples);
+      } else if (!sampled.empty()) {
+        // Vertices nothing can occlude see no other surface: their bounces are zero.
+        const int n = toleranceCount(sampled, size_t(stride), o.tolerance / std::pow(2.0, b + 1), o, evaluate, r);
+        const std::vector<double> s = evaluate(sampled, n);
+        for (size_t j = 0; j < sampled.size(); ++j)
+          std::copy_n(s.begin() + std::ptrdiff_t(j * stride), stride, next.begin() + std::ptrdiff_t(sampled[j] * size_t(stride)));
+      }
       double maxNorm = 0;
-      for (int v = 0; v < nv; ++v) {
+      for (size_t v = 0; v < nvAll; ++v) {
         double n2 = 0;
         for (int k = 0; k < stride; ++k) {
-          const double x = next[size_t(v) * stride + k];
+          const double x = next[v * stride + k];
           n2 += x * x;
-          total[size_t(v) * stride + k] += x;
+          total[v * stride + k] += x;
         }
         maxNorm = std::max(maxNorm, std::sqrt(n2));
       }
+      prev.assign(next.begin(), next.end());
       r.bounceMaxNorm.push_back(maxNorm);
       r.bouncesUsed = b;
-      if (o.keepBounces) r.bounceCoeffs.push_back(next);
+      if (o.keepBounces) r.bounceCoeffs.push_back(prev);
       if (maxNorm < o.bounceTolerance) break;
-      std::swap(prevBuf, nextBuf);
     }
     r.coeffs.assign(total.begin(), total.end());
   }
@@ -253,15 +370,32 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
 std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
   detail::checkTransportOptions(o);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
-  TransportResult r;
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
-  DeviceScene scene = prepare(rt, mesh, o, setup, true, r);
+  const Bvh bvh = buildBvh(mesh);
+  const std::vector<Bvh::Node> empty{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}};
+  cl::Buffer nodes = bvh.nodes.empty() ? rt.upload(empty) : rt.upload(bvh.nodes);
+  cl::Buffer tris = bvh.nodes.empty() ? rt.upload(std::vector<float>(12, 0.0f)) : rt.upload(bvh.packed);
   const int nv = int(mesh.vertexCount());
+  const bool packet = o.packetWidth > 0;
+  int padded = 0;
+  const std::vector<float> dirs = packet ? detail::packetDirections(setup.dirs, padded) : setup.dirs;
+  cl::Kernel k = rt.kernel("transport.cl", packet ? "transport_visibility_packet" : "transport_visibility",
+                           "-DSH_ORDER=" + std::to_string(o.order) + " -DVISIBILITY=1 -DCHANNELS=1 -DBVH_PACKET=" +
+                               std::to_string(o.packetWidth));
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, std::max<size_t>(size_t(nv) * o.samples, 16));
-  cl::Kernel k = directKernel(rt, o, true, scene, nv, "transport_visibility", "transport_visibility_packet", 9);
+  // Held until the kernel has run: a kernel argument does not keep its buffer alive.
+  const cl::Buffer origins = rt.upload(setup.origins), frames = rt.upload(setup.frames), dirsBuf = rt.upload(dirs);
+  k.setArg(0, nv);
+  k.setArg(1, o.samples);
+  k.setArg(2, origins);
+  k.setArg(3, frames);
+  k.setArg(4, dirsBuf);
+  k.setArg(5, nodes);
+  k.setArg(6, tris);
+  k.setArg(7, setup.tMax);
   k.setArg(8, out);
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
-                                  cl::NDRange(kLocalSize));
+  if (packet) k.setArg(9, padded);
+  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)), cl::NDRange(kLocalSize));
   std::vector<uint8_t> vis(size_t(nv) * o.samples);
   rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, vis.size(), vis.data());
   return vis;

@@ -13,6 +13,7 @@
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 #include "prtbake/transport.h"
+#include "tolerance.h"
 
 namespace prtbake {
 namespace {
@@ -154,36 +155,14 @@ std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh
   j["samples"] = {{"per_vertex", r.samples}, {"rays", r.rays}, {"total", r.totalSamples},
                   {"vertices_unoccludable", r.verticesUnoccludable}};
   if (o.tolerance > 0) {
-    json hist = json::object();
-    for (size_t k = 0; k < r.samplesHistogram.size(); ++k)
-      if (r.samplesHistogram[k]) hist[std::to_string(uint64_t(1) << k)] = r.samplesHistogram[k];
-    j["samples"]["per_vertex"] = "adaptive";
-    j["samples"]["max_per_vertex"] = r.samples;
-    if (o.mode == TransportMode::Unshadowed) {
-      j["adaptive"] = {{"method", "per-vertex sample doubling"},
-                       {"error_factor", kTransportErrorFactor},
-                       {"min_samples", kTransportToleranceMinSamples},
-                       {"estimate", "K * max(d(N), d(N/2)/2), d(N) = max over coefficients of |mean of the first N "
-                                    "minus mean of the first N/2 points| of one digitally shifted 2-D Sobol' sequence"}};
-    } else {
-      j["conventions"]["sampling"] = "visibility quadtree over the cosine-weighted square, rays at shared cell corners";
-      j["adaptive"] = {{"method", "visibility quadtree: cells whose corner rays disagree are split"},
-                       {"root_cells_min", kTransportRootCells},
-                       {"root_fraction", kTransportRootFraction},
-                       {"mixed_factor", kTransportMixedFactor},
-                       {"estimate", "c * max over coefficients of the sum over mixed cells of the integral of |Y_i|; "
-                                    "occluders smaller than a cell can pass between its corners unseen"}};
-    }
-    j["adaptive"]["tolerance"] = o.tolerance;
-    j["adaptive"]["achieved_error_max"] = r.maxErrorEstimate;
-    j["adaptive"]["achieved_error_mean"] = r.meanErrorEstimate;
-    j["adaptive"]["samples_histogram"] = hist;
-    j["adaptive"]["cap"] = o.toleranceMaxSamples;
-    j["adaptive"]["vertices_at_cap"] = r.verticesAtCap;
+    json terms = json::array();
+    for (const ToleranceReport& t : r.tolerance) terms.push_back(detail::toleranceJson(t));
+    j["tolerance"] = {{"terms", terms},
+                      {"meaning", "term 0 is the direct term, term k the k-th bounce; each got the count its pilot "
+                                  "predicted for its share of the tolerance (docs/transport.md)"}};
   }
-  j["error"] = {{"estimate", o.tolerance > 0 ? "the adaptive estimate (see adaptive.estimate)"
-                                             : "standard error of the direct term's coefficient vector (L2), "
-                                               "independent-sample bound"},
+  j["error"] = {{"estimate", "standard error of the direct term's coefficient vector (L2), independent-sample bound "
+                             "(0 for vertices that take the closed form)"},
                 {"max", r.maxStdError}, {"mean", r.meanStdError}};
   if (o.mode == TransportMode::Interreflected)
     j["bounces"] = {{"used", r.bouncesUsed}, {"max_norm_per_bounce", r.bounceMaxNorm}};

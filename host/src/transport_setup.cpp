@@ -8,7 +8,6 @@
 
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
-#include "sobol.h"
 
 namespace prtbake {
 namespace {
@@ -98,42 +97,43 @@ std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t s
   return sampleDirectionsLocal(samples, seed, TransportSampler::Hammersley);
 }
 
-std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed, TransportSampler sampler) {
-  // Hammersley (u1 stratified, u2 the base-2 radical inverse) with a Cranley–Patterson
-  // shift from the seed, mapped to the cosine-weighted hemisphere:
-  //   r = √u1, φ = 2π u2, ω = (r cos φ, r sin φ, √(1 − u1)),  pdf = cos θ / π.
-  // Stratified: (u1, u2) jittered in cell (i mod m, i div m) of an m × m grid (the last
-  // N − m² points, when N is not a square, are independent); Random: independent (u1, u2).
+namespace {
+
+// Direction i of the `samples`-point set of a sampler (see transport.h):
+// Hammersley (u1 stratified, u2 the base-2 radical inverse) with a Cranley–Patterson
+// shift from the seed, mapped to the cosine-weighted hemisphere:
+//   r = √u1, φ = 2π u2, ω = (r cos φ, r sin φ, √(1 − u1)),  pdf = cos θ / π.
+// Stratified: (u1, u2) jittered in cell (i mod m, i div m) of an m × m grid (the last
+// N − m² points, when N is not a square, are independent); Random: independent (u1, u2).
+std::array<double, 3> directionAt(int i, int samples, uint64_t seed, TransportSampler sampler) {
   const double s1 = unitFromBits(splitmix64(seed * 2 + 1)), s2 = unitFromBits(splitmix64(seed * 2 + 2));
   const int m = int(std::sqrt(double(std::max(samples, 0))));
-  std::vector<std::array<double, 3>> out(size_t(std::max(samples, 0)));
-  for (int i = 0; i < samples; ++i) {
-    double u1 = (i + 0.5) / samples + s1, u2 = radicalInverse2(uint32_t(i)) + s2;
-    if (sampler != TransportSampler::Hammersley) {
-      const uint64_t h = splitmix64(seed * 0x9E3779B97F4A7C15ull + 2 * uint64_t(i) + 7);
-      const double j1 = unitFromBits(h), j2 = unitFromBits(splitmix64(h));
-      if (sampler == TransportSampler::Stratified && i < m * m)
-        u1 = ((i % m) + j1) / m, u2 = ((i / m) + j2) / m;
-      else
-        u1 = j1, u2 = j2;
-    }
-    u1 -= std::floor(u1), u2 -= std::floor(u2);
-    out[i] = cosineHemisphere(u1, u2);
+  double u1 = (i + 0.5) / samples + s1, u2 = radicalInverse2(uint32_t(i)) + s2;
+  if (sampler != TransportSampler::Hammersley) {
+    const uint64_t h = splitmix64(seed * 0x9E3779B97F4A7C15ull + 2 * uint64_t(i) + 7);
+    const double j1 = unitFromBits(h), j2 = unitFromBits(splitmix64(h));
+    if (sampler == TransportSampler::Stratified && i < m * m)
+      u1 = ((i % m) + j1) / m, u2 = ((i / m) + j2) / m;
+    else
+      u1 = j1, u2 = j2;
   }
+  u1 -= std::floor(u1), u2 -= std::floor(u2);
+  return cosineHemisphere(u1, u2);
+}
+
+}  // namespace
+
+std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t seed, TransportSampler sampler) {
+  std::vector<std::array<double, 3>> out(size_t(std::max(samples, 0)));
+  for (int i = 0; i < samples; ++i) out[size_t(i)] = directionAt(i, samples, seed, sampler);
   return mortonSorted(out);
 }
 
 namespace detail {
 
-std::vector<float> sobolDirectionsLocal(uint32_t first, int count, uint64_t seed) {
-  const uint64_t h = splitmix64(seed ^ 0x5851F42D4C957F2Dull);
-  const uint32_t x0 = uint32_t(h), x1 = uint32_t(h >> 32);
+std::vector<float> directionChunk(int samples, int first, int count, uint64_t seed, TransportSampler sampler) {
   std::vector<std::array<double, 3>> out(size_t(std::max(count, 0)));
-  for (int i = 0; i < count; ++i) {
-    double u1, u2;
-    sobolPoint(first + uint32_t(i), x0, x1, u1, u2);
-    out[i] = cosineHemisphere(u1, u2);
-  }
+  for (int i = 0; i < count; ++i) out[size_t(i)] = directionAt(first + i, samples, seed, sampler);
   const auto sorted = mortonSorted(out);
   std::vector<float> dirs(sorted.size() * 4, 0.0f);
   for (size_t i = 0; i < sorted.size(); ++i)
@@ -163,11 +163,9 @@ void checkTransportOptions(const TransportOptions& o) {
     throw UsageError("--bounce-tolerance", "must be a finite number ≥ 0");
   if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
     throw UsageError("--tolerance", "must be a finite number ≥ 0");
-  if (o.tolerance > 0 && o.mode == TransportMode::Interreflected)
-    throw UsageError("--tolerance", "adaptive sampling applies to unshadowed and shadowed transport (give --samples)");
-  if (o.tolerance > 0 && (o.toleranceMaxSamples < kTransportToleranceMinSamples || o.toleranceMaxSamples > (1 << 24)))
+  if (o.tolerance > 0 && (o.toleranceMaxSamples < 2 * kTolerancePilotStart || o.toleranceMaxSamples > (1 << 24)))
     throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [" +
-                                          std::to_string(kTransportToleranceMinSamples) + ", 16777216]");
+                                          std::to_string(2 * kTolerancePilotStart) + ", 16777216]");
   if (o.albedoOverride)
     for (float a : *o.albedoOverride)
       if (!(a >= 0 && a <= 1)) throw UsageError("--albedo", "albedo must lie in [0, 1]");
@@ -189,7 +187,7 @@ bool transportIsRgb(const Mesh& mesh, const TransportOptions& o) {
   return !mesh.greyAlbedo();
 }
 
-RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o) {
+RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDirections) {
   RaySetup s;
   const size_t nv = mesh.vertexCount();
   double bmin[3], bmax[3];
@@ -219,10 +217,7 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o) {
       for (int c = 0; c < 3; ++c) g[c] += n[c];
     }
   }
-  const auto dirs = sampleDirectionsLocal(o.samples, o.seed, o.sampler);
-  s.dirs.resize(dirs.size() * 4);
-  for (size_t i = 0; i < dirs.size(); ++i)
-    for (int c = 0; c < 3; ++c) s.dirs[4 * i + c] = float(dirs[i][c]);
+  if (withDirections) s.dirs = directionChunk(o.samples, 0, o.samples, o.seed, o.sampler);
   s.origins.assign(nv * 4, 0.0f);
   s.frames.assign(nv * 12, 0.0f);
   for (size_t v = 0; v < nv; ++v) {

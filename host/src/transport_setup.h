@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "prtbake/bvh.h"
 #include "prtbake/mesh.h"
 #include "prtbake/transport.h"
 
@@ -14,17 +15,21 @@ namespace prtbake::detail {
 struct RaySetup {
   std::vector<float> origins;  // V × 4: p + ε n_g
   std::vector<float> frames;   // V × 12: t, b, n as float4 (n = 0: no normal)
-  std::vector<float> dirs;     // N × 4: local directions (float)
+  std::vector<float> dirs;     // N × 4: local directions (float); empty unless asked for
   float tMax = 0;              // ray length
   double epsilon = 0;          // the origin offset
   size_t verticesWithoutNormal = 0;
 };
 
-// Points first … first + count − 1 of the 2-D Sobol' sequence (sobol.h) with a digital
-// shift drawn from the seed (the same for every block, so each power-of-two prefix stays
-// a net), cosine-mapped like sampleDirectionsLocal and Morton-ordered; N × 4 floats.
-std::vector<float> sobolDirectionsLocal(uint32_t first, int count, uint64_t seed);
-RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options);
+// Directions first … first + count − 1 of the `samples`-point set of sampleDirectionsLocal,
+// Morton-ordered among themselves; count × 4 floats. The kernels take the set in such
+// chunks, so that no launch sums more than a chunk in float.
+std::vector<float> directionChunk(int samples, int first, int count, uint64_t seed, TransportSampler sampler);
+// Origins and frames of every vertex; with `withDirections`, the whole direction set of
+// options.samples too (the CPU reference reads it; the device takes it in chunks).
+RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options, bool withDirections = true);
+// Flags per vertex (see unoccludableVertices in transport.h) from an existing BVH.
+std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const RaySetup& setup);
 // The directions (N × 4) as the packet kernels read them: x, y, z as three rows of
 // paddedCount floats, N rounded up to a multiple of 16 (padding lanes are zero).
 std::vector<float> packetDirections(const std::vector<float>& dirs, int& paddedCount);

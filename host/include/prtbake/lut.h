@@ -17,8 +17,11 @@
 //   E(μ, r) = A + B,  E_avg(r) = 2 ∫_0^1 E(μ, r) μ dμ (midpoint rule over the N columns).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
+
+#include "prtbake/tolerance.h"
 
 namespace prtbake {
 
@@ -40,7 +43,7 @@ constexpr int kLutMaxSamples = 1 << 20;
 
 struct LutOptions {
   int size = 128;       // N: the table is N×N
-  int samples = 1024;   // samples per texel (Hammersley points)
+  int samples = 1024;   // samples per texel (Hammersley points; sums in double over chunks of 16384)
   LutNdf ndf = LutNdf::Ggx;
   LutVisibility visibility = LutVisibility::SmithCorrelated;
   bool alphaDirect = false;   // roughness axis holds α itself instead of r (α = r²)
@@ -49,28 +52,13 @@ struct LutOptions {
   bool kullaConty = false;    // extra channels E and Eavg
   bool fastMath = false;      // -cl-fast-relaxed-math and native sqrt/rsqrt/divide
   LutDirections directions = LutDirections::Table;
-  // Adaptive cubature ("--tolerance E"; 0: off, `samples` is used). Each texel's
-  // integrals are taken over the smooth pieces of the half-vector domain of the double
-  // reference (evaluateLutReference), each split into square cells (kLutRootCells² at
-  // first). A cell carries its 3×3 Gauss–Legendre value Q and its four children's values;
-  // it contributes the children's sum and estimates its error by max over channels
-  // |Q − Σ children| (the error of the coarser rule: pessimistic; for a root cell at
-  // least a quarter of the children's summed distance from the quadrants of Q's own
-  // interpolant, against chance agreement of Q and Σ children). The cells with the
-  // largest estimates are split until the texel's sum of estimates is below `tolerance`,
-  // or until the next split would pass toleranceMaxSamples integrand evaluations
-  // (counted at the cap). Channels: A, B and cloth when requested (E = A + B is then
-  // below 2·tolerance). Samples are integrand evaluations. Deterministic.
+  // "--tolerance E" (0: off, `samples` is used): the sample count that brings 95 % of
+  // the texels' A, B (and cloth) within E, predicted from a pilot over a grid of texels
+  // (prtbake/tolerance.h), at most toleranceMaxSamples; then the table is computed as
+  // with `samples` = that count.
   double tolerance = 0;
-  int toleranceMaxSamples = 65536;
+  int toleranceMaxSamples = kLutMaxSamples;
 };
-
-// Cells per side of each piece of a texel's domain before any split (see
-// LutOptions::tolerance); the root cells cost 5 squares × 9 evaluations each.
-constexpr int kLutRootCells = 2;
-// The least --max-samples with --tolerance: room for the root cells of the specular and
-// the cloth pieces (720 evaluations) and one split (144).
-constexpr int kLutToleranceMinSamples = 1024;
 
 // Throws UsageError (subject "--size", "--samples", ...) for a size outside
 // [1, kLutMaxSize], samples outside [1, kLutMaxSamples], or both cloth and multiscatter.
@@ -122,15 +110,8 @@ struct LutResult {
   double totalSeconds = 0;      // whole computeLut call
   std::string device;           // Runtime::deviceLabel()
   bool reference = false;       // computed by computeLutReference
-  // Adaptive sampling (LutOptions::tolerance > 0): samples per texel (row major),
-  // histogram[k] = texels that used [2^k, 2^(k+1)) integrand evaluations, texels that hit the cap, and the
-  // prefix-difference error estimate (max over channels) per texel, max and mean.
-  std::vector<int> samplesPerTexel;
-  std::vector<size_t> samplesHistogram;
-  size_t texelsAtCap = 0;
-  uint64_t totalSamples = 0;    // Σ over texels of the samples used
-  std::vector<float> errorEstimate;
-  double errorEstimateMax = 0, errorEstimateMean = 0;
+  uint64_t totalSamples = 0;    // samples per texel × texels (with --tolerance: the pilot's too)
+  ToleranceReport tolerance;    // what --tolerance did (empty without it)
 };
 
 // The table on the device. Throws UsageError for invalid options.

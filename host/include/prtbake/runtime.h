@@ -62,6 +62,9 @@ class Runtime {
   // The program built from `file` with `options`, built once per runtime.
   // A build failure throws DeviceError carrying the device name and build log.
   cl::Program program(const std::string& file, const std::string& options = "");
+  // The kernel `name` of that program, created once per runtime and shared: a caller
+  // sets every argument before each launch, and two threads do not launch the same
+  // kernel at once.
   cl::Kernel kernel(const std::string& file, const std::string& name,
                     const std::string& options = "");
 
@@ -88,6 +91,7 @@ class Runtime {
   cl::Context context_;
   cl::CommandQueue queue_;
   std::map<std::string, cl::Program> programs_;
+  std::map<std::string, cl::Kernel> kernels_;
   std::mutex mutex_;
   double buildSeconds_ = 0.0;
 };

@@ -24,6 +24,7 @@
 
 #include "prtbake/mesh.h"
 #include "prtbake/runtime.h"
+#include "prtbake/tolerance.h"
 
 namespace prtbake {
 
@@ -44,7 +45,7 @@ TransportSampler parseTransportSampler(const std::string& name);
 struct TransportOptions {
   TransportMode mode = TransportMode::Shadowed;
   int order = 3;            // SH order 1..kMaxTransportOrder
-  int samples = 1024;       // directions per vertex (and per bounce)
+  int samples = 1024;       // directions per vertex (and per bounce); summed in double over chunks of 1024
   uint64_t seed = 0;        // selects the direction set and the per-vertex rotations
   int bounces = 3;          // interreflected only: the most bounces B ≥ 1
   // Interreflected only: stop after a bounce whose largest per-vertex coefficient
@@ -68,43 +69,17 @@ struct TransportOptions {
   size_t firstVertex = 0;
   std::optional<size_t> vertexCount;
   TransportSampler sampler = TransportSampler::Hammersley;
-  // Adaptive sampling ("--tolerance E", unshadowed and shadowed only; 0: off, `samples`
-  // is used). Deterministic for a given seed.
-  // Unshadowed: each vertex takes successive blocks of ONE 2-D Sobol' sequence (a digital
-  // shift from the seed; the per-vertex rotation about the normal of the uniform path),
-  // doubling its count N per round and keeping every earlier sample; every power-of-two
-  // prefix is a (0,m,2)-net, as good as the uniform path's Hammersley set. With
-  // d(N) = max_i |T̂_i(N) − T̂_i(N/2)| the change of the prefix means (≈ 2 err(N) for an
-  // error falling like 1/N),
-  //   err(p) = kTransportErrorFactor · max(d(N), d(N/2)/2),
-  // and a vertex stops at the first N ≥ kTransportToleranceMinSamples with err < tolerance
-  // or when doubling would pass toleranceMaxSamples (reported at the cap).
-  // Shadowed: vertices that cannot be occluded take the closed form
-  // (clampedCosineProjected) and no rays; the others a visibility quadtree over the
-  // cosine-weighted square (a root grid of at least kTransportRootCells² cells, finer
-  // for smaller E; rays at cell corners, cells whose
-  // corners disagree split in four until kTransportMixedFactor × the mixed cells'
-  // ∫|Y_i| is below tolerance for every coefficient, or until the next level would pass
-  // toleranceMaxSamples rays; the root grid is always traced). Occluders smaller than a
-  // cell can pass between its corners unseen.
+  // "--tolerance E" (0: off, `samples` is used): each term (the direct term, each bounce)
+  // takes the sample count that brings 95 % of its vertices within its share of E, E/2^(k+1)
+  // for term k of interreflected transport (E for the others), predicted from a pilot over
+  // at most 256 of the mesh's vertices (prtbake/tolerance.h) and capped at
+  // toleranceMaxSamples. Vertices that no triangle can occlude, and every vertex of
+  // unshadowed transport, take the closed form (clampedCosineProjected) instead of samples;
+  // their bounces are exactly zero. The pilot uses the whole mesh's vertices, so a vertex
+  // range gets the counts of the whole mesh.
   double tolerance = 0;
   int toleranceMaxSamples = 65536;
 };
-
-// Adaptive sampling constants (see TransportOptions::tolerance).
-// K of the estimate; measured: ≥ 95 % of vertices end below E (tests/test_tolerance.cpp).
-constexpr double kTransportErrorFactor = 2.0;
-// Fewest samples at which a vertex may stop (and the least --max-samples).
-constexpr int kTransportToleranceMinSamples = 64;
-// The shadowed quadtree (see TransportOptions::tolerance): the fewest root cells per side
-// ((16 + 1)·16 + 1 = 273 rays per vertex), doubled while one root cell can hold more than
-// kTransportRootFraction · E of a coefficient, and c of the estimate c · Σ_mixed ∫|Y_i|
-// (1: a mixed cell may be wholly wrong). Measured on the open cavity and the bumpy sphere
-// at E = 2e-2 … 1e-3 (docs/accuracy.md): c = 0.5 leaves small occluders unseen at the
-// bumpy sphere's loose tolerances; with these values every vertex ends below E.
-constexpr int kTransportRootCells = 16;
-constexpr double kTransportRootFraction = 0.2;
-constexpr double kTransportMixedFactor = 1.0;
 
 // Orders accepted by the transport product.
 constexpr int kMaxTransportOrder = 8;
@@ -129,15 +104,9 @@ struct TransportResult {
   // Vertices whose hemisphere no triangle can reach (every vertex of a convex mesh):
   // computed without visibility rays (shadowed and interreflected modes).
   size_t verticesUnoccludable = 0;
-  // Adaptive sampling (TransportOptions::tolerance > 0): samples used per vertex,
-  // histogram[k] = vertices that used about 2^k samples (rounded in log₂), vertices that
-  // hit the cap, and the error estimate (max over coefficients) per vertex, max and mean.
-  std::vector<int> samplesPerVertex;
-  std::vector<size_t> samplesHistogram;
-  size_t verticesAtCap = 0;
-  uint64_t totalSamples = 0;  // Σ over vertices of the samples used (both modes)
-  std::vector<float> errorEstimate;
-  double maxErrorEstimate = 0, meanErrorEstimate = 0;
+  uint64_t totalSamples = 0;  // Σ over vertices of the samples used (every term, the pilots too)
+  // With --tolerance: what it did for the direct term, then for each bounce.
+  std::vector<ToleranceReport> tolerance;
   double bvhSeconds = 0, kernelSeconds = 0, totalSeconds = 0;
   size_t bvhNodes = 0, degenerateTriangles = 0, verticesWithoutNormal = 0;
   std::string device;

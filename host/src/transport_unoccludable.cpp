@@ -1,19 +1,12 @@
-// The direct term over a subset of vertices, and the unoccludable-vertex test
-// (see transport_direct.h and transport.h).
-#include "transport_direct.h"
-
+// The unoccludable-vertex test (see unoccludableVertices in transport.h).
 #include <algorithm>
-#include <cmath>
 
-#include "prtbake/error.h"
+#include "prtbake/bvh.h"
+#include "prtbake/transport.h"
+#include "transport_setup.h"
 
 namespace prtbake {
 namespace detail {
-namespace {
-constexpr size_t kLocalSize = 16;  // as in transport.cpp
-
-}  // namespace
-
 // A vertex p with unit normal n and ray origin o = p + h' (h = n·(o − p) > 0 its height
 // above p's tangent plane) can be occluded only by a triangle with a point q above the
 // plane n·q = n·o: a ray o + t d with n·d ≥ 0 never goes below that height. Triangles
@@ -67,51 +60,12 @@ std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const
   return out;
 }
 
-void DirectRunner::run(const RaySetup& setup, const std::vector<uint32_t>& vertices, bool visibility,
-                       std::vector<float>& coeffs, std::vector<float>& visible) {
-  const int nc = o_.order * o_.order;
-  const int nv = int(vertices.size());
-  const int ns = int(setup.dirs.size() / 4);
-  coeffs.assign(size_t(nv) * nc, 0.0f);
-  visible.assign(size_t(nv), 0.0f);
-  if (nv == 0) return;
-  std::vector<float> origins(size_t(nv) * 4), frames(size_t(nv) * 12);
-  for (int i = 0; i < nv; ++i) {
-    std::copy_n(&setup.origins[4 * size_t(vertices[i])], 4, &origins[4 * size_t(i)]);
-    std::copy_n(&setup.frames[12 * size_t(vertices[i])], 12, &frames[12 * size_t(i)]);
-  }
-  const bool packet = o_.packetWidth > 0;
-  int padded = 0;
-  const std::vector<float> dirs = packet ? packetDirections(setup.dirs, padded) : setup.dirs;
-  const std::string opts = "-DSH_ORDER=" + std::to_string(o_.order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
-                           " -DCHANNELS=1 -DBVH_PACKET=" + std::to_string(o_.packetWidth);
-  cl::Kernel k = rt_.kernel("transport.cl", packet ? "transport_direct_packet" : "transport_direct", opts);
-  cl::Buffer ob = rt_.upload(origins), fb = rt_.upload(frames), db = rt_.upload(dirs);
-  cl::Buffer cb(rt_.context(), CL_MEM_READ_WRITE, coeffs.size() * 4), vb(rt_.context(), CL_MEM_READ_WRITE, visible.size() * 4);
-  k.setArg(0, nv);
-  k.setArg(1, ns);
-  k.setArg(2, ob);
-  k.setArg(3, fb);
-  k.setArg(4, db);
-  k.setArg(5, nodes_);
-  k.setArg(6, tris_);
-  k.setArg(7, tMax_);
-  k.setArg(8, cb);
-  k.setArg(9, vb);
-  if (packet) k.setArg(10, padded);
-  auto& q = rt_.queue();
-  q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((size_t(nv) + kLocalSize - 1) / kLocalSize * kLocalSize),
-                         cl::NDRange(kLocalSize));
-  q.enqueueReadBuffer(cb, CL_TRUE, 0, coeffs.size() * 4, coeffs.data());
-  q.enqueueReadBuffer(vb, CL_TRUE, 0, visible.size() * 4, visible.data());
-}
-
 }  // namespace detail
 
 std::vector<uint8_t> unoccludableVertices(const Mesh& mesh) {
   TransportOptions o;
   o.samples = 1;
-  const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
   return detail::unoccludableFromBvh(mesh, buildBvh(mesh), setup);
 }
 

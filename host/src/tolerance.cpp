@@ -1,0 +1,100 @@
+// The "--tolerance" pilot (see prtbake/tolerance.h for the method).
+#include "tolerance.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace prtbake::detail {
+namespace {
+
+// The pilot stops doubling once its count is within this factor of the prediction.
+constexpr double kExtrapolationFactor = 8.0;
+// The quantile of the per-item changes that the pooled estimate takes.
+constexpr double kQuantile = 0.95;
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, size_t(std::ceil(q * double(v.size() - 1))));
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
+std::vector<size_t> pilotSubset(size_t count) {
+  std::vector<size_t> out;
+  const size_t step = std::max<size_t>(1, (count + kTolerancePilotItems - 1) / kTolerancePilotItems);
+  for (size_t i = step / 2; i < count; i += step) out.push_back(i);
+  return out;
+}
+
+ToleranceReport runTolerancePilot(const PilotEvaluate& evaluate, size_t stride, double tolerance, int maxSamples,
+                                  int granularity) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ToleranceReport rep;
+  rep.tolerance = tolerance;
+  rep.strategy = "uniform, count predicted from a pilot";
+  rep.why = "one count for every item: the study measured per-item adaptivity slower in wall time (docs/accuracy.md)";
+  int n = kTolerancePilotStart;
+  std::vector<std::vector<double>> first = evaluate({n / 2, n});
+  std::vector<double> prev = std::move(first[0]), cur = std::move(first[1]);
+  rep.pilotSamples = {n / 2, n};
+  rep.pilotItems = stride ? prev.size() / stride : 0;
+  double lastD = -1, p = 1.0, predicted = 0;
+  for (;;) {
+    std::vector<double> d(rep.pilotItems, 0.0);
+    for (size_t i = 0; i < rep.pilotItems; ++i)
+      for (size_t k = 0; k < stride; ++k) d[i] = std::max(d[i], std::abs(cur[i * stride + k] - prev[i * stride + k]));
+    const double D = quantile(d, kQuantile);
+    if (lastD > 0 && D > 0) p = std::clamp(std::log2(lastD / D), 0.5, 1.0);
+    lastD = D;
+    rep.rate = p;
+    rep.pilotChange = D;  // D(n)
+    // The error at n from the change: if the error falls like c/N^p with one sign (the
+    // deterministic sets do that, measured on the cloth table), T(n/2) − T(n) is
+    // (2^p − 1)·e(n), so e(n) = D/(2^p − 1); errors of random sign would give less.
+    const double errorAtN = D / (std::pow(2.0, p) - 1.0);
+    // The count that brings that error below the tolerance.
+    predicted = errorAtN > 0 ? double(n) * std::pow(errorAtN / tolerance, 1.0 / p) : 1.0;
+    if (predicted <= kExtrapolationFactor * n || 2 * n > maxSamples) break;
+    prev = std::move(cur);
+    n *= 2;
+    cur = std::move(evaluate({n})[0]);
+    rep.pilotSamples.push_back(n);
+  }
+  // Up to a quarter octave, 2^m × {1, 5/4, 3/2, 7/4}: at such counts the error falls
+  // steadily (measured on the BRDF tables), where at arbitrary counts between two powers
+  // it can stay above the lower power's (9056 samples against 8192).
+  double rounded = std::max(double(granularity), 1.0);
+  while (rounded * 2 < predicted) rounded *= 2;
+  const double quarter = std::max(rounded / 4, double(granularity));
+  rounded = std::ceil(predicted / quarter) * quarter;
+  rep.samples = int(std::min<double>(std::max(rounded, double(granularity)), maxSamples));
+  rep.capped = rounded > maxSamples;
+  rep.predictedError = lastD / (std::pow(2.0, p) - 1.0) * std::pow(double(n) / rep.samples, p);
+  rep.pilotSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return rep;
+}
+
+nlohmann::json toleranceJson(const ToleranceReport& r) {
+  nlohmann::json j = {{"tolerance", r.tolerance},
+                      {"strategy", r.strategy},
+                      {"why", r.why},
+                      {"samples", r.samples},
+                      {"items", r.items}};
+  if (!r.pilotSamples.empty()) {
+    j["pilot"] = {{"items", r.pilotItems},
+                  {"samples", r.pilotSamples},
+                  {"change_p95", r.pilotChange},
+                  {"rate", r.rate},
+                  {"seconds", r.pilotSeconds},
+                  {"meaning", "the 95th percentile over the pilot items of the largest change of a value between "
+                              "successive counts, fitted as D(N) ~ N^-rate (docs/accuracy.md)"}};
+    j["predicted_error_p95"] = r.predictedError;
+    j["capped"] = r.capped;
+  }
+  return j;
+}
+
+}  // namespace prtbake::detail
