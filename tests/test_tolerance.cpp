@@ -130,8 +130,8 @@ TEST_CASE("Tolerance: the open cavity within E, and the same as the uniform run 
                   << e.fractionBelow(tolerance));
     CHECK(e.fractionBelow(tolerance) >= kMinFractionBelow);
     CHECK_FALSE(t.capped);
-    // The pilot ran on at most 256 vertices of the 624.
-    CHECK(t.pilotItems <= kTolerancePilotItems);
+    // The pilot ran on at most 128 vertices of the 624.
+    CHECK(t.pilotItems <= kTolerancePilotVertices);
     CHECK(t.items == cavity.vertexCount());
     // The sampled vertices are those of the uniform run at that count, bit for bit.
     TransportOptions u;

@@ -3,13 +3,13 @@
 # bench/results/study/ (CSV, JSON), docs/images/accuracy_*.png and docs/accuracy.md.
 #   bash bench/study/run.sh          full study (~9 min on the 2-core machine, plus the build)
 #   STUDY_QUICK=1 bash bench/study/run.sh   smaller sweeps (a few minutes)
-# Installs what it needs (the build's Debian packages, python3-matplotlib for the plots and
-# python3-numpy for the offline replays) as root or via sudo, like scripts/setup.sh.
+# Installs what it needs (the build's Debian packages and python3-matplotlib for the plots)
+# as root or via sudo, like scripts/setup.sh.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 . "$ROOT/scripts/packages.sh"
 # shellcheck disable=SC2086  # the list is split into packages on purpose
-install_missing $PRTBAKE_PKGS python3-numpy python3-matplotlib
+install_missing $PRTBAKE_PKGS python3-matplotlib
 BUILD=${BUILD:-$ROOT/build}
 OUT=$ROOT/bench/results/study
 mkdir -p "$OUT" "$ROOT/docs/images"
@@ -80,16 +80,6 @@ python_with() {
     if command -v "$p" >/dev/null && "$p" -c "import $1" 2>/dev/null; then echo "$p"; return; fi
   done
 }
-
-# Offline replays of the --tolerance stopping rules and their oracle bounds (NumPy; skipped without it).
-NPY=$(python_with numpy)
-if [ -n "$NPY" ]; then
-  "$NPY" "$ROOT/bench/study/replay_lut.py" "$OUT/replay_lut.md"
-  "$NPY" "$ROOT/bench/study/replay_transport.py" "$OUT/transport_pervertex.txt" "$OUT/replay_transport.md"
-  "$NPY" "$ROOT/bench/study/proto_adaptive.py" "$OUT/proto_adaptive.md"
-else
-  echo "study: no python3 with numpy (apt-get install python3-numpy): replays skipped" >&2
-fi
 
 END=$(date +%s)
 echo "{\"runtime_s\": $((END - START)), \"quick\": \"${QUICK:-no}\"}" > "$OUT/run.json"

@@ -4,9 +4,17 @@
 //   product,curve,param,value,wall_s,cpu_s,err_max,err_rms,samples_total,ref_bound
 // err_* are against a high-accuracy reference (named in the curve's product block);
 // wall_s and cpu_s (process CPU time, all threads) are medians over the repetitions.
+// "--tolerance E" runs are rows of the curve <case>-tolerance (param "tolerance"), each
+// followed by a comment line
+//   #tolerance,PRODUCT,CASE,E,FRACTION_WITHIN_E,COUNTS
+// (COUNTS: the count of each term, '/'-separated), and every case has a "uniform" sweep of
+// --samples N over powers of two (curve <case>-uniform), against which make_report.py
+// finds the fastest run at the same maximum error. Curves <case>-monotone hold the
+// maximum error from 2^10 to 2^24 samples per item.
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -29,7 +37,6 @@ using namespace prtbake;
 namespace {
 const double kPi = 3.14159265358979323846;
 FILE* gOut = nullptr;
-std::string gPerVertexPath;  // bumpy-shadowed per-vertex errors (next to the CSV)
 
 double cpuNow() {
   rusage u{};
@@ -149,6 +156,19 @@ Err perVertex(const std::vector<double>& a, const std::vector<double>& b, int st
   return e;
 }
 
+// The fraction of items whose worst error is within e.
+double fractionWithin(const std::vector<double>& perItem, double e) {
+  size_t n = 0;
+  for (double x : perItem) n += x <= e;
+  return perItem.empty() ? 1.0 : double(n) / double(perItem.size());
+}
+
+std::string countsText(const std::vector<ToleranceReport>& terms) {
+  std::string t;
+  for (const auto& r : terms) t += (t.empty() ? "" : "/") + std::to_string(r.samples);
+  return t.empty() ? "0" : t;
+}
+
 void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
   const TransportSampler samplers[] = {TransportSampler::Hammersley, TransportSampler::Stratified,
                                        TransportSampler::Random};
@@ -161,8 +181,7 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
   cases.push_back({"sphere-unoccluded", makeUvSphere(1.0, 24, 48), TransportMode::Shadowed});
   cases.push_back({"bumpy-shadowed", makeBumpySphere(2000), TransportMode::Shadowed});
   // The open cavity of tests/test_tolerance.cpp (every vertex occludable, one smooth edge).
-  cases.push_back({"cavity-shadowed", makeOpenSphereCavity(1.0, 3.14159265358979323846 / 3, 12, 48),
-                   TransportMode::Shadowed});
+  cases.push_back({"cavity-shadowed", makeOpenSphereCavity(1.0, kPi / 3, 12, 48), TransportMode::Shadowed});
   cases.push_back({"bumpy-interreflected", makeBumpySphere(2000), TransportMode::Interreflected});
   for (const Case& c : cases) {
     const int order = 3, nc = order * order;
@@ -179,7 +198,7 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
     } else {
       // A converged run, and its own error bound: two independent seeds differ by
       // √2 × the error of one (max over vertices of the worst coefficient).
-      const int rs = c.mode == TransportMode::Interreflected ? refSamples / 4 : refSamples;
+      const int rs = refSamples;
       TransportOptions ro = base;
       ro.samples = rs;
       TransportResult a, b;
@@ -198,6 +217,7 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
     std::fprintf(stderr, "transport %s: %zu vertices, %zu unoccludable\n", c.name.c_str(), c.mesh.vertexCount(),
                  size_t(std::count(unocc.begin(), unocc.end(), 1)));
     const int top = c.mode == TransportMode::Interreflected ? maxSamples / 4 : maxSamples;
+    // The samplers, every fourth power of two.
     for (TransportSampler s : samplers) {
       for (int n = 16; n <= top; n *= 4) {
         TransportOptions o = base;
@@ -210,34 +230,26 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
             double(n) * c.mesh.vertexCount(), refBound);
       }
     }
-    if (c.mode == TransportMode::Interreflected) continue;
-    if (c.name == "bumpy-shadowed") {
-      // Per-vertex errors of the default sampler on a 2^(1/2) grid of counts, for the
-      // offline oracle bounds (replay_transport.py): one line per count, "N e_0 e_1 …".
-      FILE* f = std::fopen(gPerVertexPath.c_str(), "w");
-      if (!f) throw std::runtime_error("cannot write " + gPerVertexPath);
-      for (int k = 0; k <= 16; ++k) {
-        TransportOptions o = base;
-        o.samples = int(std::lround(64 * std::pow(2.0, k / 2.0)));
-        std::fprintf(f, "%d", o.samples);
-        for (double w : vertexErrors(coeffsOf(computeTransport(rt, c.mesh, o)), ref, nc)) std::fprintf(f, " %.4g", w);
-        std::fprintf(f, "\n");
-      }
-      std::fclose(f);
+    // The default sampler at every power of two: the uniform runs --tolerance is judged by.
+    for (int n = 16; n <= top; n *= 2) {
+      TransportOptions o = base;
+      o.samples = n;
+      TransportResult r;
+      const Timing t = timeIt(3, true, [&] { r = computeTransport(rt, c.mesh, o); });
+      const Err e = perVertex(coeffsOf(r), ref, nc);
+      row("transport", c.name + "-uniform", "samples", n, t, e.max, e.rms, double(r.totalSamples), refBound);
     }
     for (double tol : {2e-2, 1e-2, 5e-3, 2e-3, 1e-3}) {
       TransportOptions o = base;
       o.tolerance = tol;
       TransportResult r;
-      const Timing t = timeIt(1, false, [&] { r = computeTransport(rt, c.mesh, o); });
+      const Timing t = timeIt(3, true, [&] { r = computeTransport(rt, c.mesh, o); });
       const Err e = perVertex(coeffsOf(r), ref, nc);
-      const std::vector<double> w = vertexErrors(coeffsOf(r), ref, nc);
-      const size_t below = size_t(std::count_if(w.begin(), w.end(), [tol](double x) { return x < tol; }));
-      row("transport", c.name + "-adaptive", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), refBound);
-      std::fprintf(gOut, "#adaptive,transport,%s,%g,%.6f,%zu,%zu,%g\n", c.name.c_str(), tol,
-                   double(below) / double(c.mesh.vertexCount()), r.verticesAtCap, r.verticesUnoccludable,
-                   r.maxErrorEstimate);
+      row("transport", c.name + "-tolerance", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), refBound);
+      std::fprintf(gOut, "#tolerance,transport,%s,%g,%.6f,%s\n", c.name.c_str(), tol,
+                   fractionWithin(vertexErrors(coeffsOf(r), ref, nc), tol), countsText(r.tolerance).c_str());
     }
+    if (c.mode == TransportMode::Interreflected) continue;
     // Packet width (the only work-size knob of the transport kernels; local size is 16).
     for (int pw : {0, 8, 16}) {
       TransportOptions o = base;
@@ -249,6 +261,124 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       row("transport", c.name + "-packet" + std::to_string(pw), "samples", 1024, t, e.max, e.rms,
           1024.0 * c.mesh.vertexCount(), refBound);
     }
+  }
+}
+
+// A closed box [−1, 1]² × [0, 1] (normals inward) with a square hole [−h, h]² in its
+// ceiling; vertices 0 … 15 lie on its floor, normal +z, at x, y ∈ {−0.6, −0.2, 0.2, 0.6}.
+// Seen from there only the hole is open, so T_00 = Y_0 × F, F the form factor of the
+// hole from the ray origin, exact by Lambert's polygon formula
+//   F = (1/2π) |Σ_i γ_i n·(r_i × r_{i+1})/|r_i × r_{i+1}||,  γ_i the angle between the
+// unit vectors r_i, r_{i+1} to consecutive corners.
+Mesh holeBox(double h) {
+  Mesh m;
+  auto vertex = [&](double x, double y, double z, double nx, double ny, double nz) {
+    m.positions.insert(m.positions.end(), {float(x), float(y), float(z)});
+    m.normals.insert(m.normals.end(), {float(nx), float(ny), float(nz)});
+    m.albedo.insert(m.albedo.end(), {1, 1, 1});
+    return uint32_t(m.vertexCount() - 1);
+  };
+  // Floor: a 6 × 6 grid over [−1, 1]², its 16 inner vertices first.
+  const double g[6] = {-1, -0.6, -0.2, 0.2, 0.6, 1};
+  uint32_t id[6][6];
+  for (int pass = 0; pass < 2; ++pass)
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 6; ++i) {
+        const bool inner = i > 0 && i < 5 && j > 0 && j < 5;
+        if (inner == (pass == 0)) id[j][i] = vertex(g[i], g[j], 0, 0, 0, 1);
+      }
+  for (int j = 0; j < 5; ++j)
+    for (int i = 0; i < 5; ++i)
+      m.indices.insert(m.indices.end(), {id[j][i], id[j][i + 1], id[j + 1][i + 1], id[j][i], id[j + 1][i + 1], id[j + 1][i]});
+  // A quad facing n (corners counter-clockwise seen from the side n points to).
+  auto quad = [&](std::array<std::array<double, 3>, 4> c, std::array<double, 3> n) {
+    uint32_t q[4];
+    for (int k = 0; k < 4; ++k) q[k] = vertex(c[k][0], c[k][1], c[k][2], n[0], n[1], n[2]);
+    m.indices.insert(m.indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+  };
+  quad({{{1, -1, 0}, {1, 1, 0}, {1, 1, 1}, {1, -1, 1}}}, {-1, 0, 0});
+  quad({{{-1, 1, 0}, {-1, -1, 0}, {-1, -1, 1}, {-1, 1, 1}}}, {1, 0, 0});
+  quad({{{1, 1, 0}, {-1, 1, 0}, {-1, 1, 1}, {1, 1, 1}}}, {0, -1, 0});
+  quad({{{-1, -1, 0}, {1, -1, 0}, {1, -1, 1}, {-1, -1, 1}}}, {0, 1, 0});
+  // Ceiling around the hole, facing down.
+  quad({{{-1, h, 1}, {1, h, 1}, {1, 1, 1}, {-1, 1, 1}}}, {0, 0, -1});
+  quad({{{-1, -1, 1}, {1, -1, 1}, {1, -h, 1}, {-1, -h, 1}}}, {0, 0, -1});
+  quad({{{-1, -h, 1}, {-h, -h, 1}, {-h, h, 1}, {-1, h, 1}}}, {0, 0, -1});
+  quad({{{h, -h, 1}, {1, -h, 1}, {1, h, 1}, {h, h, 1}}}, {0, 0, -1});
+  // The winding above is clockwise from inside for some quads: transport uses the
+  // vertex normals given and the geometric normal only to offset ray origins, which
+  // only floor vertices use here.
+  return m;
+}
+
+double holeFormFactor(const double o[3], double h) {
+  h = double(float(h));  // the corners as the mesh holds them
+  const double c[4][2] = {{-h, -h}, {h, -h}, {h, h}, {-h, h}};
+  double r[4][3];
+  for (int k = 0; k < 4; ++k) {
+    const double v[3] = {c[k][0] - o[0], c[k][1] - o[1], 1 - o[2]};
+    const double len = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    for (int a = 0; a < 3; ++a) r[k][a] = v[a] / len;
+  }
+  double sum = 0;
+  for (int k = 0; k < 4; ++k) {
+    const double* a = r[k];
+    const double* b = r[(k + 1) % 4];
+    const double cx = a[1] * b[2] - a[2] * b[1], cy = a[2] * b[0] - a[0] * b[2], cz = a[0] * b[1] - a[1] * b[0];
+    const double cl = std::sqrt(cx * cx + cy * cy + cz * cz);
+    const double gamma = std::atan2(cl, a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+    sum += gamma * cz / cl;  // n = +z
+  }
+  return std::abs(sum) / (2 * kPi);
+}
+
+// More samples never make a product worse: the maximum error from 2^10 to 2^24 samples
+// per item, against closed forms. Transport: T_00 of the 16 floor vertices of holeBox;
+// LUT: a 16² GGX table against the reference with four times its nodes (its own error
+// < 1e-6).
+void studyMonotone(Runtime& rt, int maxLog2) {
+  const double h = 0.3, y0 = 0.28209479177387814;
+  const Mesh box = holeBox(h);
+  // Ray origins as transport.h defines them: p + ε n_g, ε = 1e-4 × the bounding-box
+  // diagonal (3) + 1e-6 × the largest coordinate (1), rounded to float as the kernel reads them.
+  const double eps = 1e-4 * 3.0 + 1e-6 * 1.0;
+  std::vector<double> expect(16);
+  for (size_t v = 0; v < 16; ++v) {
+    const double o[3] = {box.positions[3 * v], box.positions[3 * v + 1], double(float(eps))};
+    expect[v] = y0 * holeFormFactor(o, h);
+  }
+  for (int k = 10; k <= maxLog2; k += 2) {
+    TransportOptions o;
+    o.samples = 1 << k;
+    o.vertexCount = 16;
+    TransportResult r;
+    const Timing t = timeIt(1, false, [&] { r = computeTransport(rt, box, o); });
+    double e = 0, s2 = 0;
+    for (size_t v = 0; v < r.vertexCount; ++v) {
+      const double d = std::abs(double(r.vertex(v)[0]) - expect[v]);
+      e = std::max(e, d), s2 += d * d;
+    }
+    row("transport", "holebox-monotone", "samples", o.samples, t, e, std::sqrt(s2 / double(r.vertexCount)),
+        double(o.samples) * 16, 0);
+  }
+  LutOptions o;
+  o.size = 16;
+  std::vector<LutPoint> pts;
+  for (int j = 0; j < o.size; ++j)
+    for (int i = 0; i < o.size; ++i) pts.push_back({(i + 0.5) / o.size, (j + 0.5) / o.size});
+  const LutValues ref = evaluateLutReference(o, pts, 4);
+  for (int k = 10; k <= maxLog2; k += 2) {
+    o.samples = 1 << k;
+    if (o.samples > kLutMaxSamples) break;
+    LutValues v;
+    const Timing t = timeIt(1, false, [&] { v = evaluateLut(rt, o, pts); });
+    double e = 0, s2 = 0;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      const double d = std::max(std::abs(v.a[i] - ref.a[i]), std::abs(v.b[i] - ref.b[i]));
+      e = std::max(e, d), s2 += d * d;
+    }
+    row("lut", "ggx16-monotone", "samples", o.samples, t, e, std::sqrt(s2 / double(pts.size())),
+        double(o.samples) * double(pts.size()), 0);
   }
 }
 
@@ -299,21 +429,32 @@ void studyLut(Runtime& rt, int size, int maxSamples) {
         row("lut", nd + "-" + v.name, "samples", n, t, e.max, e.rms, double(n) * size * size, bound);
       }
     }
+    // The default table at every power of two: the uniform runs --tolerance is judged by.
+    for (int n = 16; n <= maxSamples; n *= 2) {
+      LutOptions o = base;
+      o.samples = n;
+      LutResult r;
+      const Timing t = timeIt(3, true, [&] { r = computeLut(rt, o); });
+      std::vector<double> rv(r.a.begin(), r.a.end());
+      rv.insert(rv.end(), r.b.begin(), r.b.end());
+      const Err e = diff(rv, refv);
+      row("lut", nd + "-uniform", "samples", n, t, e.max, e.rms, double(r.totalSamples), bound);
+    }
     for (double tol : {1e-2, 3e-3, 1e-3, 3e-4, 1e-4}) {
       LutOptions o = base;
       o.tolerance = tol;
       LutResult r;
-      const Timing t = timeIt(1, true, [&] { r = computeLut(rt, o); });
+      const Timing t = timeIt(3, true, [&] { r = computeLut(rt, o); });
       std::vector<double> rv(r.a.begin(), r.a.end());
       rv.insert(rv.end(), r.b.begin(), r.b.end());
       const Err e = diff(rv, refv);
-      size_t below = 0;
       const size_t texels = size_t(size) * size;
+      std::vector<double> perTexel(texels);
       for (size_t i = 0; i < texels; ++i)
-        below += std::max(std::abs(rv[i] - refv[i]), std::abs(rv[texels + i] - refv[texels + i])) < tol;
-      row("lut", nd + "-adaptive", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), bound);
-      std::fprintf(gOut, "#adaptive,lut,%s,%g,%.6f,%zu,0,%g\n", nd.c_str(), tol, double(below) / double(texels),
-                   r.texelsAtCap, r.errorEstimateMax);
+        perTexel[i] = std::max(std::abs(rv[i] - refv[i]), std::abs(rv[texels + i] - refv[texels + i]));
+      row("lut", nd + "-tolerance", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), bound);
+      std::fprintf(gOut, "#tolerance,lut,%s,%g,%.6f,%d\n", nd.c_str(), tol, fractionWithin(perTexel, tol),
+                   r.tolerance.samples);
     }
   }
 }
@@ -328,16 +469,15 @@ int main(int argc, char** argv) {
   const bool quick = argc > 3 && std::string(argv[3]) == "quick";
   gOut = std::fopen(argv[1], "w");
   if (!gOut) return 1;
-  const std::string csv = argv[1];
-  gPerVertexPath = csv.substr(0, csv.find_last_of('/') + 1) + "transport_pervertex.txt";
   std::fprintf(gOut, "product,curve,param,value,wall_s,cpu_s,err_max,err_rms,samples_total,ref_bound\n");
   Runtime rt("cpu");
   std::fprintf(stderr, "device: %s\n", rt.deviceLabel().c_str());
-  // STUDY_ONLY=env|lut|transport runs one product (for debugging a sweep).
+  // STUDY_ONLY=env|lut|transport|monotone runs one part (for debugging a sweep).
   const std::string only = std::getenv("STUDY_ONLY") ? std::getenv("STUDY_ONLY") : "";
   if (only.empty() || only == "env") studyEnv(rt, argv[2]);
-  if (only.empty() || only == "lut") studyLut(rt, quick ? 32 : 64, quick ? 4096 : 65536);
+  if (only.empty() || only == "lut") studyLut(rt, quick ? 32 : 128, quick ? 4096 : 65536);
   if (only.empty() || only == "transport") studyTransport(rt, quick ? 1024 : 16384, quick ? 4096 : 32768);
+  if (only.empty() || only == "monotone") studyMonotone(rt, quick ? 16 : 24);
   std::fclose(gOut);
   return 0;
 }

@@ -207,13 +207,13 @@ bool hasNormal(const detail::RaySetup& s, size_t v) {
   return s.frames[12 * v + 8] != 0 || s.frames[12 * v + 9] != 0 || s.frames[12 * v + 10] != 0;
 }
 
-// The count for one term under --tolerance: the pilot over (at most 256 of) the sampled
+// The count for one term under --tolerance: the pilot over (at most 128 of) the sampled
 // vertices of the whole mesh, `evaluate` giving their values at N samples.
 int toleranceCount(const std::vector<uint32_t>& sampled, size_t stride, double tolerance, const TransportOptions& o,
                    const std::function<std::vector<double>(const std::vector<uint32_t>&, int)>& evaluate,
                    TransportResult& r) {
   std::vector<uint32_t> pilot;
-  for (size_t i : detail::pilotSubset(sampled.size())) pilot.push_back(sampled[i]);
+  for (size_t i : detail::pilotSubset(sampled.size(), kTolerancePilotVertices)) pilot.push_back(sampled[i]);
   auto each = [&](const std::vector<int>& counts) {
     std::vector<std::vector<double>> out;
     for (int n : counts) out.push_back(evaluate(pilot, n));

@@ -6,8 +6,8 @@
 // visibility). `--tolerance E` asks for the smallest N that brings 95 % of the items
 // within E. It is found on a pilot before the product runs:
 //
-//   1. A pilot subset of the items (a regular grid of at most kPilotItems texels, every
-//      k-th vertex) is evaluated at N = 32, 64, 128, ….
+//   1. A pilot subset of the items (a regular grid of at most 256 texels, at most 128
+//      vertices spread over the mesh) is evaluated at N = 16, 32, 64, ….
 //   2. Each doubling gives every pilot item the change d_i(N) = max over its values of
 //      |T_i(N) − T_i(N/2)|, pooled as their 95th percentile D(N); the rate p comes from
 //      two successive D (clamped to [0.5, 1]: a smaller p only asks for more samples).
@@ -23,8 +23,10 @@
 //   4. The product runs once, uniformly, with M samples: the same computation as
 //      `--samples M`.
 //
-// The pilot costs about 2·N_last/8 per pilot item, a few per cent of the run for
-// tables of 32² and up and meshes of a thousand vertices and up. Items that need no
+// The pilot costs about 2·N_last per pilot item against M per item of the run (N_last
+// ≥ M/8, so a few per cent for 128² tables and meshes of thousands of vertices), and at
+// least 48 samples per pilot item: at the loosest tolerances of small meshes it is then
+// the larger share. Items that need no
 // sampling (vertices no triangle can occlude, unshadowed transport) take their closed
 // form instead, with no samples.
 #pragma once
@@ -35,8 +37,11 @@
 
 namespace prtbake {
 
-// Pilot items at most (a 16 × 16 grid of texels, 256 vertices).
-constexpr size_t kTolerancePilotItems = 256;
+// Pilot items at most: a 16 × 16 grid of texels; 128 vertices, since a vertex's rays
+// cost as much in the pilot as in the run (at 256 the pilot of a 624-vertex mesh cost
+// 30 % of its run at the loosest tolerance, measured).
+constexpr size_t kTolerancePilotTexels = 256;
+constexpr size_t kTolerancePilotVertices = 128;
 // The first pilot counts are kTolerancePilotStart and twice that.
 constexpr int kTolerancePilotStart = 32;
 
