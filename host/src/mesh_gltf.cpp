@@ -233,10 +233,21 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
   // Corner list of the primitive (indexed or not), before strip/fan conversion.
   std::vector<uint32_t> corners;
   if (prim.indices >= 0) {
+    // glTF 2.0: indices are scalar unsigned bytes, shorts or ints, not normalised; so every
+    // value read below is a whole number ≥ 0 (a float accessor could hold NaN).
+    if (prim.indices < int(model.accessors.size())) {
+      const auto& acc = model.accessors[size_t(prim.indices)];
+      if ((acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+           acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+           acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) ||
+          acc.type != TINYGLTF_TYPE_SCALAR || acc.normalized)
+        throw InputError(path, what + " indices: accessor " + std::to_string(prim.indices) +
+                                   " must hold unnormalised scalar unsigned integers (glTF 2.0)");
+    }
     const std::vector<double> idx = detail::readAccessor(model, prim.indices, 1, path, what + " indices");
     corners.reserve(idx.size());
     for (double v : idx) {
-      if (v < 0 || v >= double(nv))
+      if (v >= double(nv))
         throw InputError(path, what + ": index " + std::to_string(uint64_t(v)) + " is out of range (" +
                                    std::to_string(nv) + " vertices)");
       corners.push_back(uint32_t(v));
