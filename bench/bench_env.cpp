@@ -1,12 +1,14 @@
-// Benchmark: environment projection throughput and whole-command wall time.
+// Benchmark: environment projection throughput, whole-command wall time and peak memory.
 //
 //   bench_env [RESULTS.json] [--kernel-only] [--sweep]
 //   --sweep: order-3 kernel time for each vector width and rows per work-group, printed only.
 // 1. Kernel throughput for 6×2048² float RGB faces (302 MB) at orders 3 and 8:
 //    median (and minimum) device time of 15 runs after a warm-up, texels/s and the equivalent
 //    read bandwidth (12 bytes per texel).
-// 2. `prtbake env` on ../shared/data/envmaps/games202/Skybox2048 (six 2048² JPEGs):
-//    first run with an empty kernel cache (cold build), then the median of 5 warm runs.
+// 2. `prtbake env` as a separate process (wall time and peak resident memory from wait4):
+//    on ../shared/data/envmaps/games202/Skybox2048 (six 2048² JPEGs), first with an empty
+//    kernel cache (cold build), then the median of 5 warm runs; and warm on generated
+//    8192×4096 lat-long OpenEXR files, half and float32.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -14,10 +16,14 @@
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
 
 #include "prtbake/env_sh.h"
+#include "prtbake/exr.h"
 #include "prtbake/runtime.h"
 
 using namespace prtbake;
@@ -27,13 +33,97 @@ static double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-static double wallOf(const std::string& cmd) {
+struct Run {
+  double wallSeconds;
+  double peakMiB;  // the child's maximum resident set size
+};
+
+// This process's resident memory (a child's peak includes it until exec).
+static double selfRssMiB() {
+  std::ifstream f("/proc/self/status");
+  for (std::string line; std::getline(f, line);)
+    if (line.rfind("VmRSS:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
+  return 0;
+}
+
+// Runs argv as a child process and measures it.
+static Run runCommand(const std::vector<std::string>& args, const std::vector<std::string>& env = {}) {
   const auto t0 = std::chrono::steady_clock::now();
-  if (std::system(cmd.c_str()) != 0) {
-    std::fprintf(stderr, "command failed: %s\n", cmd.c_str());
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    for (const auto& e : env) ::putenv(const_cast<char*>(e.c_str()));
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  struct rusage usage {};
+  if (pid < 0 || ::wait4(pid, &status, 0, &usage) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    std::fprintf(stderr, "command failed: %s ...\n", args[0].c_str());
     std::exit(1);
   }
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return {std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), double(usage.ru_maxrss) / 1024.0};
+}
+
+// An 8192×4096 lat-long with a smooth sky and a small bright sun, as an OpenEXR file.
+static void writeLatLong(const std::string& path, bool half) {
+  const int w = 8192, h = 4096;
+  std::vector<float> r(size_t(w) * h), g(r.size()), b(r.size());
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = size_t(y) * w + size_t(x);
+      const float up = 1.0f - float(y) / float(h), sun = (std::abs(x - w / 3) < 8 && std::abs(y - h / 4) < 8) ? 5e4f : 0.0f;
+      r[i] = 0.2f + 0.8f * up + sun, g[i] = 0.3f + 0.7f * up + sun, b[i] = 0.5f + up + sun;
+    }
+  ExrWriteOptions o;
+  o.half = half;
+  o.envmap = 0;
+  writeExr(path, w, h, {{"R", r.data()}, {"G", g.data()}, {"B", b.data()}}, o);
+}
+
+// Whole commands, each a child process. Run before this process allocates anything
+// large: a child's peak resident memory counts what it shares with its parent at fork.
+static std::string measureCommands() {
+  const std::string cli = PRTBAKE_CLI_PATH, out = "/tmp/prtbake-bench-env.json";
+  const std::string data = PRTBAKE_BENCH_DATA_DIR;
+  const std::string faces = data + "/envmaps/games202/Skybox2048";
+  std::string json;
+  bool first = true;
+  auto record = [&](const std::string& input, const std::string& label) {
+    const std::string cache = "/tmp/prtbake-bench-env-cache";
+    const std::vector<std::string> args = {cli, "env", input, "-o", out, "--quiet", "--device", "cpu"};
+    const std::vector<std::string> env = {"POCL_CACHE_DIR=" + cache, "PRTBAKE_CACHE_DIR=" + cache};
+    std::system(("rm -rf " + cache).c_str());
+    const Run coldRun = runCommand(args, env);  // builds the programs
+    std::vector<double> wall, peak;
+    for (int i = 0; i < 5; ++i) {
+      const Run r = runCommand(args, env);
+      wall.push_back(r.wallSeconds), peak.push_back(r.peakMiB);
+    }
+    const double peakMax = *std::max_element(peak.begin(), peak.end());
+    std::printf("prtbake env %s: cold %.3f s (peak %.0f MiB), warm median %.3f s, peak %.0f MiB (this process: %.0f MiB)\n",
+                label.c_str(), coldRun.wallSeconds, coldRun.peakMiB, median(wall), peakMax, selfRssMiB());
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "%s\n    {\"input\": \"%s\", \"cold_s\": %.3f, \"cold_peak_MiB\": %.1f, \"warm_median_s\": %.3f, "
+                  "\"warm_min_s\": %.3f, \"warm_peak_MiB_max\": %.1f}",
+                  first ? "" : ",", label.c_str(), coldRun.wallSeconds, coldRun.peakMiB, median(wall),
+                  *std::min_element(wall.begin(), wall.end()), peakMax);
+    json += line;
+    first = false;
+  };
+  struct stat st {};
+  if (::stat(faces.c_str(), &st) == 0) record(faces, "games202/Skybox2048 (6 x 2048^2 JPEG)");
+  else std::printf("Skybox2048 not found under %s: its whole-command timing skipped\n", data.c_str());
+  for (const bool half : {true, false}) {
+    const std::string path = std::string("/tmp/prtbake-bench-latlong-") + (half ? "half" : "float") + ".exr";
+    writeLatLong(path, half);
+    record(path, std::string("8192x4096 lat-long OpenEXR, ") + (half ? "half" : "float32"));
+    std::remove(path.c_str());
+  }
+  return json;
 }
 
 int main(int argc, char** argv) {
@@ -48,6 +138,7 @@ int main(int argc, char** argv) {
       return 2;
     } else results = a;
   }
+  const std::string commands = kernelOnly || sweep ? "" : measureCommands();
   Runtime rt(std::getenv("PRTBAKE_DEVICE") ? "" : "cpu");
   std::string json = "{\n  \"device\": \"" + rt.deviceLabel() + "\",\n  \"kernel\": [\n";
 
@@ -91,32 +182,12 @@ int main(int argc, char** argv) {
   }
   json += "\n  ]";
 
-  const std::string data = PRTBAKE_BENCH_DATA_DIR;
-  const std::string faces = data + "/envmaps/games202/Skybox2048";
-  struct stat st {};
+  json += "\n  ]";
   if (kernelOnly) {
     std::printf("--kernel-only: whole-command timing skipped, no results written\n");
     return 0;
   }
-  if (::stat(faces.c_str(), &st) == 0) {
-    const std::string cache = "/tmp/prtbake-bench-pocl-cache";
-    std::system(("rm -rf " + cache).c_str());
-    const std::string cmd = "POCL_CACHE_DIR=" + cache + " '" + std::string(PRTBAKE_CLI_PATH) + "' env '" + faces +
-                            "' -o /tmp/prtbake-bench-env.json --quiet --device cpu";
-    const double cold = wallOf(cmd);
-    std::vector<double> warm;
-    for (int i = 0; i < 5; ++i) warm.push_back(wallOf(cmd));
-    std::printf("prtbake env Skybox2048: cold %.3f s, warm median %.3f s\n", cold, median(warm));
-    char line[256];
-    std::snprintf(line, sizeof line,
-                  ",\n  \"command\": {\"input\": \"games202/Skybox2048 (6 x 2048^2 JPEG)\", \"cold_s\": %.3f, "
-                  "\"warm_median_s\": %.3f}",
-                  cold, median(warm));
-    json += line;
-  } else {
-    std::printf("Skybox2048 not found under %s: whole-command timing skipped\n", data.c_str());
-  }
-  json += "\n}\n";
+  json += ",\n  \"command\": [" + commands + "\n  ]\n}\n";
   std::ofstream(results) << json;
   std::printf("results written to %s\n", results.c_str());
   return 0;

@@ -35,6 +35,7 @@ int runEnv(const CommandLine& cl) {
   EnvLoadOptions lo;
   lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
   lo.clampInvalid = cl.has("clamp-invalid");
+  lo.compact = true;
   const double yaw = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
 
   nlohmann::json autoCurve;

@@ -49,6 +49,7 @@ int previewEnv(const CommandLine& cl, const std::string& input, const std::strin
   } else {
     EnvLoadOptions lo;
     lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
+    lo.compact = true;
     env = loadEnvironment(input, lo);
     env.yawDegrees = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
     EnvProjectOptions po;
@@ -150,6 +151,7 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
   if (!bgPath.empty()) {
     EnvLoadOptions lo;
     lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
+    lo.compact = true;
     background = loadEnvironment(bgPath, lo);
     o.background = &background;
   }

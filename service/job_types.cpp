@@ -41,6 +41,7 @@ ExecResult runEnv(const Job& job, ExecContext& ctx) {
   EnvLoadOptions loadOptions;
   loadOptions.layout = p["layout"].get<std::string>();
   loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
+  loadOptions.compact = true;
   const auto t0 = std::chrono::steady_clock::now();
   EnvMap env = loadEnvironment(job.input, loadOptions);
   env.yawDegrees = p["yaw"].get<double>();
@@ -119,7 +120,9 @@ ExecResult runTransport(const Job& job, ExecContext& ctx) {
   if (ctx.wants("png")) {
     const std::string envPath = p["preview_env"].get<std::string>();
     if (previewFromMap) {
-      previewMap = loadEnvironment(envPath, EnvLoadOptions{});
+      EnvLoadOptions compact;
+      compact.compact = true;
+      previewMap = loadEnvironment(envPath, compact);
       previewFiles = previewMap.inputFiles;
     } else {
       previewRadiance = readShJson(envPath);

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "image_read.h"
+#include "prtbake/env_sh.h"
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
@@ -81,7 +82,8 @@ Dir texelDir(const EnvMap& env, size_t index) {
 double maxDirectionError(const EnvMap& env, const std::function<Dir(const float*)>& decode) {
   double worst = 0;
   for (size_t i = 0; i < env.texelCount(); ++i) {
-    const Dir want = texelDir(env, i), got = decode(&env.rgb[3 * i]);
+    const std::array<float, 3> t = env.texel(i);
+    const Dir want = texelDir(env, i), got = decode(t.data());
     for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(want[k] - got[k]));
   }
   return worst;
@@ -275,6 +277,29 @@ TEST_CASE("Face directories load in DESIGN.md orientation from EXR, half EXR, PN
     EnvLoadOptions forced;
     forced.layout = "faces";
     CHECK(loadEnvironment(dir, forced).rgb == env.rgb);
+    // Compact storage keeps 8-bit codes and halves; each texel decodes to exactly
+    // the float the default load holds, and the kernel projects the same sums.
+    EnvLoadOptions compact;
+    compact.compact = true;
+    const EnvMap small = loadEnvironment(dir, compact);
+    const EnvStorage expected = v.ext == std::string(".png") ? EnvStorage::Code8
+                                : std::string(v.name) == "half" ? EnvStorage::Half
+                                                                : EnvStorage::Float;
+    CHECK(small.storage() == expected);
+    size_t mismatches = 0;
+    for (size_t i = 0; i < env.texelCount(); ++i) {
+      const auto t = small.texel(i);
+      for (int c = 0; c < 3; ++c) mismatches += t[size_t(c)] != env.rgb[3 * i + size_t(c)];
+    }
+    CHECK(mismatches == 0);
+    EnvProjectOptions po;
+    po.order = 4;
+    const ShCoeffs a = projectEnvironment(test::runtime(), env, po).coeffs;
+    const ShCoeffs b = projectEnvironment(test::runtime(), small, po).coeffs;
+    CHECK(a.rgb == b.rgb);
+    EnvMap widened = small;
+    widened.toFloat();
+    CHECK(widened.rgb == env.rgb);
   }
 }
 
@@ -329,6 +354,10 @@ TEST_CASE("Crosses and strips load in DESIGN.md orientation", "[env_load]") {
   EnvLoadOptions forced;
   forced.layout = "cross";
   CHECK(maxDirectionError(loadEnvironment(png, forced), decodePng) < kPngDirTol);
+  forced.compact = true;
+  const EnvMap codes = loadEnvironment(png, forced);
+  CHECK(codes.storage() == EnvStorage::Code8);
+  CHECK(maxDirectionError(codes, decodePng) < kPngDirTol);
 }
 
 TEST_CASE("Cross seams are continuous: texels along each shared image edge are one texel apart", "[env_load]") {
@@ -437,6 +466,17 @@ TEST_CASE("Lat-long orientation agrees with Imf::LatLongMap up to the texel-cent
     REQUIRE(env.width == w);
     REQUIRE(env.height == h);
     CHECK(env.layoutName == "latlong");
+    CHECK(maxDirectionError(env, decodeFloat) < kConventionTol);
+  }
+  {  // A half lat-long kept as halves (half rounding, 4.9e-4, is far inside the tolerance).
+    const std::string path = dir + "/half.exr";
+    ExrWriteOptions opt;
+    opt.half = true;
+    writeExrPicture(path, p, opt);
+    EnvLoadOptions compact;
+    compact.compact = true;
+    const EnvMap env = loadEnvironment(path, compact);
+    CHECK(env.storage() == EnvStorage::Half);
     CHECK(maxDirectionError(env, decodeFloat) < kConventionTol);
   }
   // A few landmarks, by hand: the centre column looks along +Z, a quarter to the

@@ -13,16 +13,19 @@
 //                                                                             [−Z] (rotated 180°)
 //   1:6, 6:1    strips of the six faces in the order +X, −X, +Y, −Y, +Z, −Z
 #include <ImfEnvmap.h>
+#include <malloc.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
-#include <exception>
-#include <thread>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <filesystem>
+#include <mutex>
+#include <thread>
 
 #include "image_read.h"
 #include "prtbake/envmap.h"
@@ -40,24 +43,47 @@ const std::array<const char*, 4> kFaceExtensions = {".exr", ".hdr", ".png", ".jp
 
 std::string sizeText(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
+// An image's storage, as EnvMap's (envmap.h).
+EnvStorage storageOf(const Image& img) {
+  return img.codes ? EnvStorage::Code8 : !img.halfRgb.empty() ? EnvStorage::Half : EnvStorage::Float;
+}
+
+// Copies `count` texels from position src of img to position dst of env, both in the
+// same storage.
+void copyTexels(const Image& img, size_t src, EnvMap& env, size_t dst, size_t count) {
+  switch (env.storage()) {
+    case EnvStorage::Code8: std::copy_n(img.codes.get() + 3 * src, 3 * count, &env.codes[3 * dst]); break;
+    case EnvStorage::Half: std::copy_n(&img.halfRgb[3 * src], 3 * count, &env.halfRgb[3 * dst]); break;
+    case EnvStorage::Float: std::copy_n(&img.rgb[3 * src], 3 * count, &env.rgb[3 * dst]); break;
+  }
+}
+
 // Copies the n×n block of `img` whose top-left pixel is (x0, y0) into cube face
 // `face` of env (row 0 at the top). rotate180 turns the block upside down
 // (row r, column c of the face comes from block row n−1−r, column n−1−c).
 void copyFace(const Image& img, int x0, int y0, int n, bool rotate180, EnvMap& env, int face) {
-  for (int r = 0; r < n; ++r)
-    for (int c = 0; c < n; ++c) {
-      const int sr = rotate180 ? n - 1 - r : r, sc = rotate180 ? n - 1 - c : c;
-      const size_t src = 3 * (size_t(y0 + sr) * size_t(img.width) + size_t(x0 + sc));
-      const size_t dst = 3 * ((size_t(face) * size_t(n) + size_t(r)) * size_t(n) + size_t(c));
-      for (int k = 0; k < 3; ++k) env.rgb[dst + k] = img.rgb[src + k];
+  for (int r = 0; r < n; ++r) {
+    const size_t dstRow = (size_t(face) * size_t(n) + size_t(r)) * size_t(n);
+    if (!rotate180) {
+      copyTexels(img, size_t(y0 + r) * size_t(img.width) + size_t(x0), env, dstRow, size_t(n));
+      continue;
     }
+    for (int c = 0; c < n; ++c)
+      copyTexels(img, size_t(y0 + n - 1 - r) * size_t(img.width) + size_t(x0 + n - 1 - c), env, dstRow + size_t(c), 1);
+  }
 }
 
-EnvMap emptyCube(int n, const std::string& path, const std::string& layoutName) {
+// An n×n cube in the storage of `like` (its 8-bit table too), texels unset.
+EnvMap emptyCube(int n, const std::string& path, const std::string& layoutName, const Image& like) {
   EnvMap env;
   env.layout = EnvLayout::Cube;
   env.width = env.height = n;
-  env.rgb.assign(6 * size_t(n) * size_t(n) * 3, 0.0f);
+  const size_t values = 6 * size_t(n) * size_t(n) * 3;
+  switch (storageOf(like)) {
+    case EnvStorage::Code8: env.codes.resize(values), env.codeToLinear = like.codeToLinear; break;
+    case EnvStorage::Half: env.halfRgb.resize(values); break;
+    case EnvStorage::Float: env.rgb.resize(values); break;
+  }
   env.source = path;
   env.inputFiles = {path};
   env.layoutName = layoutName;
@@ -71,6 +97,9 @@ EnvMap fromLatLong(Image&& img, const std::string& path) {
   env.layout = EnvLayout::LatLong;
   env.width = img.width, env.height = img.height;
   env.rgb = std::move(img.rgb);
+  env.halfRgb = std::move(img.halfRgb);
+  if (img.codes) env.codes.assign(img.codes.get(), img.codes.get() + 3 * env.texelCount());
+  env.codeToLinear = img.codeToLinear;
   env.source = path;
   env.inputFiles = {path};
   env.layoutName = "latlong";
@@ -101,7 +130,7 @@ EnvMap fromCross(const Image& img, const std::string& path) {
                                              {1, 2, false}, {1, 1, false}, {3, 1, false}}}
                  : std::array<CrossCell, 6>{{{2, 1, false}, {0, 1, false}, {1, 0, false},
                                              {1, 2, false}, {1, 1, false}, {1, 3, true}}};
-  EnvMap env = emptyCube(n, path, horizontal ? "cross" : "vertical-cross");
+  EnvMap env = emptyCube(n, path, horizontal ? "cross" : "vertical-cross", img);
   for (int f = 0; f < 6; ++f) copyFace(img, cells[f].col * n, cells[f].row * n, n, cells[f].rotate180, env, f);
   return env;
 }
@@ -109,7 +138,7 @@ EnvMap fromCross(const Image& img, const std::string& path) {
 EnvMap fromStrip(const Image& img, const std::string& path) {
   const bool vertical = img.height == 6 * img.width;
   const int n = vertical ? img.width : img.height;
-  EnvMap env = emptyCube(n, path, "strip");
+  EnvMap env = emptyCube(n, path, "strip", img);
   for (int f = 0; f < 6; ++f) copyFace(img, vertical ? 0 : f * n, vertical ? f * n : 0, n, false, env, f);
   return env;
 }
@@ -132,7 +161,7 @@ EnvMap fromOpenExrCube(const Image& img, const std::string& path) {
   if (img.height != 6 * img.width)
     throw InputError(path, "an OpenEXR cube map must be N wide and 6N high (got " + sizeText(img.width, img.height) + ")");
   const int n = img.width;
-  EnvMap env = emptyCube(n, path, "openexr-cube");
+  EnvMap env = emptyCube(n, path, "openexr-cube", img);
   const Imath::Box2i dw(Imath::V2i(img.dataMinX, img.dataMinY),
                         Imath::V2i(img.dataMinX + img.width - 1, img.dataMinY + img.height - 1));
   std::vector<unsigned char> used(size_t(img.width) * size_t(img.height), 0);
@@ -153,8 +182,7 @@ EnvMap fromOpenExrCube(const Image& img, const std::string& path) {
         const size_t src = size_t(y) * size_t(img.width) + size_t(x);
         PRTBAKE_CHECK(used[src] == 0, "two cube texels map to one OpenEXR pixel");
         used[src] = 1;
-        const size_t dst = 3 * ((size_t(f) * size_t(n) + size_t(r)) * size_t(n) + size_t(c));
-        for (int k = 0; k < 3; ++k) env.rgb[dst + k] = img.rgb[3 * src + k];
+        copyTexels(img, src, env, (size_t(f) * size_t(n) + size_t(r)) * size_t(n) + size_t(c), 1);
       }
   }
   // 6N² distinct pixels of a 6N² image were hit: each exactly once.
@@ -211,26 +239,42 @@ std::vector<std::string> findFaceFiles(const std::string& dir, const std::array<
   return files;
 }
 
-// Reads six face files into the cube faces 0..5 in the order given.
+// Reads six face files into the cube faces 0..5 in the order given. The files are
+// decoded in parallel (JPEG/PNG/EXR decoding dominates loading), and each face is
+// copied into the cube as soon as it is decoded, so at most one decoded image per
+// thread is alive beside the cube. Errors are reported in face order, whichever
+// thread met them first.
 EnvMap fromFaceFiles(const std::string& dir, const std::vector<std::string>& files, LdrDecode decode,
-                     const std::string& layoutName) {
+                     const std::string& layoutName, bool compact) {
   EnvMap env;
   env.layout = EnvLayout::Cube;
-  env.source = dir;
-  env.inputFiles = files;
-  env.layoutName = layoutName;
-  // Decode the six files in parallel (JPEG/PNG/EXR decoding dominates loading:
-  // ~80 ms per 2048² JPEG face), then check and copy them in face order so that
-  // errors are reported deterministically.
-  std::array<Image, 6> images;
-  std::array<std::exception_ptr, 6> errors;
+  struct Face {
+    int width = 0, height = 0;
+    EnvStorage storage = EnvStorage::Float;
+    bool placed = false;
+    std::exception_ptr error;
+  };
+  std::array<Face, 6> faces;
+  std::mutex mutex;  // guards the cube's allocation
+  bool allocated = false;
   std::atomic<int> next{0};
   auto worker = [&] {
     for (int f; (f = next++) < 6;) {
+      Face& face = faces[size_t(f)];
       try {
-        images[size_t(f)] = detail::readImage(files[size_t(f)], decode);
+        const Image img = detail::readImage(files[size_t(f)], decode, compact);
+        face.width = img.width, face.height = img.height, face.storage = storageOf(img);
+        if (img.width != img.height) continue;  // reported below, in face order
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!allocated) env = emptyCube(img.width, dir, layoutName, img), allocated = true;
+        }
+        if (img.width == env.width && face.storage == env.storage()) {
+          copyFace(img, 0, 0, img.width, false, env, f);
+          face.placed = true;
+        }
       } catch (...) {
-        errors[size_t(f)] = std::current_exception();
+        face.error = std::current_exception();
       }
     }
   };
@@ -239,23 +283,26 @@ EnvMap fromFaceFiles(const std::string& dir, const std::vector<std::string>& fil
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
   worker();
   for (auto& t : pool) t.join();
-  for (const auto& e : errors)
-    if (e) std::rethrow_exception(e);
-  int n = 0;
+  for (const Face& face : faces)
+    if (face.error) std::rethrow_exception(face.error);
   for (size_t f = 0; f < 6; ++f) {
-    Image img = std::move(images[f]);
-    if (img.width != img.height)
-      throw InputError(files[f], "a cube face must be square (got " + sizeText(img.width, img.height) + ")");
-    if (f == 0) {
-      n = img.width;
-      env.width = env.height = n;
-      env.rgb.assign(6 * size_t(n) * size_t(n) * 3, 0.0f);
-    } else if (img.width != n) {
-      throw InputError(files[f], "face is " + sizeText(img.width, img.height) + " but " + files[0] + " is " +
-                                     sizeText(n, n) + "; all six faces must have the same size");
-    }
-    copyFace(img, 0, 0, n, false, env, int(f));
+    const Face& face = faces[f];
+    if (face.width != face.height)
+      throw InputError(files[f], "a cube face must be square (got " + sizeText(face.width, face.height) + ")");
+    if (face.width != faces[0].width)
+      throw InputError(files[f], "face is " + sizeText(face.width, face.height) + " but " + files[0] + " is " +
+                                     sizeText(faces[0].width, faces[0].width) + "; all six faces must have the same size");
   }
+  for (const Face& face : faces)
+    if (!face.placed) {
+      // Faces of different storages (a PNG beside an OpenEXR face): all as floats.
+      PRTBAKE_CHECK(compact, "a face of the cube was not placed");
+      return fromFaceFiles(dir, files, decode, layoutName, false);
+    }
+  env.inputFiles = files;
+#ifdef __GLIBC__
+  malloc_trim(0);  // the decoders' freed buffers: 20 MB of a 6 × 2048² JPEG cube stay resident otherwise
+#endif
   return env;
 }
 
@@ -279,16 +326,16 @@ const std::array<CubeFaceBasis, 6> kGames202Bases = {{
     {{1, 0, 0}, {0, -1, 0}, {0, 0, 1}},
 }};
 
-EnvMap loadDirectory(const std::string& dir, const std::string& layout) {
+EnvMap loadDirectory(const std::string& dir, const std::string& layout, bool compact) {
   const std::vector<const char*> allExts(kFaceExtensions.begin(), kFaceExtensions.end());
   if (layout == "games202") {
-    EnvMap env = fromFaceFiles(dir, findFaceFiles(dir, kGames202LoadOrder, allExts), LdrDecode::Gamma22, "games202");
+    EnvMap env = fromFaceFiles(dir, findFaceFiles(dir, kGames202LoadOrder, allExts), LdrDecode::Gamma22, "games202", compact);
     env.faces = kGames202Bases;
     return env;
   }
   if (layout != "auto" && layout != "faces")
     throw InputError(dir, "is a directory; layout '" + layout + "' needs a single image");
-  return fromFaceFiles(dir, findFaceFiles(dir, kFaceNames, allExts), LdrDecode::Srgb, "faces");
+  return fromFaceFiles(dir, findFaceFiles(dir, kFaceNames, allExts), LdrDecode::Srgb, "faces", compact);
 }
 
 }  // namespace
@@ -301,11 +348,11 @@ EnvMap loadEnvironment(const std::string& path, const EnvLoadOptions& options) {
   if (::stat(path.c_str(), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   EnvMap env;
   if (S_ISDIR(st.st_mode)) {
-    env = loadDirectory(path, layout);
+    env = loadDirectory(path, layout, options.compact);
   } else {
     if (layout == "faces" || layout == "games202")
       throw InputError(path, "layout '" + layout + "' needs a directory of six face images");
-    env = fromImage(detail::readImage(path, LdrDecode::Srgb), path, layout);
+    env = fromImage(detail::readImage(path, LdrDecode::Srgb, options.compact), path, layout);
   }
   validateEnvironment(env, options.clampInvalid);
   return env;

@@ -1,9 +1,10 @@
 // Environment → SH: the OpenCL projection and its double-precision reference.
 #include <chrono>
-#include <map>
-#include <mutex>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
+#include <map>
+#include <memory>
+#include <mutex>
 
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
@@ -34,26 +35,32 @@ int vectorWidth(const Runtime& rt, int order) {
 // evaluated once per corner of the upper-left quadrant and texels are the
 // differences f(u0,v0) − f(u0,v1) − f(u1,v0) + f(u1,v1) (envmap.h), so a 2048²
 // face costs 1M atan2 instead of 8M. Tables are kept per size for later calls.
-std::vector<float> cubeSolidAngleTable(int n) {
+std::shared_ptr<const RawVector<float>> cubeSolidAngleTable(int n) {
   static std::mutex mutex;
-  static std::map<int, std::vector<float>> cache;
+  static std::map<int, std::shared_ptr<const RawVector<float>>> cache;
   std::lock_guard<std::mutex> lock(mutex);
   if (auto it = cache.find(n); it != cache.end()) return it->second;
   const int half = (n + 1) / 2;  // rows (and columns) 0..half−1 cover a quadrant
-  std::vector<double> corner(size_t(half + 1) * size_t(half + 1));
-  for (int r = 0; r <= half; ++r)
+  // f(u, v) at the texel corners of two consecutive corner rows.
+  std::vector<double> top(size_t(half) + 1), bottom(size_t(half) + 1);
+  auto cornerRow = [&](int r, std::vector<double>& f) {
+    const double v = 2.0 * r / n - 1.0;
     for (int c = 0; c <= half; ++c) {
-      const double u = 2.0 * c / n - 1.0, v = 2.0 * r / n - 1.0;
-      corner[size_t(r) * size_t(half + 1) + size_t(c)] = std::atan2(u * v, std::sqrt(u * u + v * v + 1.0));
+      const double u = 2.0 * c / n - 1.0;
+      f[size_t(c)] = std::atan2(u * v, std::sqrt(u * u + v * v + 1.0));
     }
-  auto f = [&](int r, int c) { return corner[size_t(r) * size_t(half + 1) + size_t(c)]; };
-  std::vector<float> table(size_t(half) * size_t(n));
-  for (int r = 0; r < half; ++r)
+  };
+  auto table = std::make_shared<RawVector<float>>(size_t(half) * size_t(n));
+  cornerRow(0, top);
+  for (int r = 0; r < half; ++r) {
+    cornerRow(r + 1, bottom);
     for (int c = 0; c < half; ++c) {
-      const float w = float(f(r, c) - f(r + 1, c) - f(r, c + 1) + f(r + 1, c + 1));
-      table[size_t(r) * size_t(n) + size_t(c)] = w;
-      table[size_t(r) * size_t(n) + size_t(n - 1 - c)] = w;  // Ω is symmetric in u
+      const float w = float(top[size_t(c)] - bottom[size_t(c)] - top[size_t(c) + 1] + bottom[size_t(c) + 1]);
+      (*table)[size_t(r) * size_t(n) + size_t(c)] = w;
+      (*table)[size_t(r) * size_t(n) + size_t(n - 1 - c)] = w;  // Ω is symmetric in u
     }
+    top.swap(bottom);
+  }
   cache.emplace(n, table);
   return table;
 }
@@ -143,7 +150,9 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   const int order = options.order, nc = order * order;
   const int vw = options.vectorWidth ? options.vectorWidth : vectorWidth(rt, order);
   if (vw != 1 && vw != 8 && vw != 16) throw UsageError("vector width", "must be 1, 8 or 16");
-  const std::string buildOptions = "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vw);
+  const EnvStorage storage = env.storage();
+  const std::string buildOptions = "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vw) +
+                                   " -DENV_TEXELS=" + std::to_string(int(storage));
   const bool cube = env.layout == EnvLayout::Cube;
   // Cube faces on vector devices go by row moments (fewer accumulators, no basis per
   // texel), with the polynomial coefficients formed on the host; see env_project.cl.
@@ -157,16 +166,25 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   const auto t0 = std::chrono::steady_clock::now();
   const cl_mem_flags hostFlags =
       rt.info().type == "cpu" ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;  // zero copy on CPU devices
-  cl::Buffer rgb(rt.context(), CL_MEM_READ_ONLY | hostFlags, env.rgb.size() * sizeof(float),
-                 const_cast<float*>(env.rgb.data()));
+  // The texels in their own storage (float, half or 8-bit codes), and the codes' table.
+  void* texels = storage == EnvStorage::Code8 ? static_cast<void*>(const_cast<uint8_t*>(env.codes.data()))
+                 : storage == EnvStorage::Half ? static_cast<void*>(const_cast<uint16_t*>(env.halfRgb.data()))
+                                               : static_cast<void*>(const_cast<float*>(env.rgb.data()));
+  const size_t texelBytes = storage == EnvStorage::Code8 ? env.codes.size()
+                            : storage == EnvStorage::Half ? 2 * env.halfRgb.size()
+                                                          : 4 * env.rgb.size();
+  cl::Buffer rgb(rt.context(), CL_MEM_READ_ONLY | hostFlags, texelBytes, texels);
+  cl::Buffer codeTable(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, 256 * sizeof(float),
+                       const_cast<float*>(env.codeToLinear.data()));
   const size_t rows = cube ? 6 * size_t(env.width) : size_t(env.height);
   cl::Buffer partials(rt.context(), CL_MEM_WRITE_ONLY, rows * size_t(perRow) * sizeof(float));
   const double yaw = env.yawDegrees * kPi / 180.0;
   std::vector<float> table1, table2;
+  std::shared_ptr<const RawVector<float>> solidAngles;  // cube: the quadrant's texel solid angles
   cl::Buffer buf1, buf2;
   if (cube) {
     const int n = env.width;
-    table1 = cubeSolidAngleTable(n);
+    solidAngles = cubeSolidAngleTable(n);
     // Face bases rotated by yaw about +Y.
     const double cy = std::cos(yaw), sy = std::sin(yaw);
     for (const auto& f : env.faces)
@@ -174,10 +192,12 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
         const auto& v = *a;
         table2.insert(table2.end(), {float(cy * v[0] + sy * v[2]), float(v[1]), float(-sy * v[0] + cy * v[2])});
       }
-    buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
+    buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | hostFlags, solidAngles->size() * 4,
+                      const_cast<float*>(solidAngles->data()));
     buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
     int arg = 0;
     kernel.setArg(arg++, rgb);
+    kernel.setArg(arg++, codeTable);
     kernel.setArg(arg++, buf1);
     if (!moments) kernel.setArg(arg++, buf2);
     kernel.setArg(arg++, n);
@@ -201,11 +221,12 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
     buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
     buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
     kernel.setArg(0, rgb);
-    kernel.setArg(1, buf1);
-    kernel.setArg(2, buf2);
-    kernel.setArg(3, w);
-    kernel.setArg(4, h);
-    kernel.setArg(5, partials);
+    kernel.setArg(1, codeTable);
+    kernel.setArg(2, buf1);
+    kernel.setArg(3, buf2);
+    kernel.setArg(4, w);
+    kernel.setArg(5, h);
+    kernel.setArg(6, partials);
   }
   result.uploadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -257,7 +278,7 @@ ShCoeffs projectEnvironmentReference(const EnvMap& env, int order) {
     double d[3], omega;
     texelDirection(env, t, d, &omega);
     shEval(order, d[0], d[1], d[2], y.data());
-    const float* rgb = env.rgb.data() + 3 * t;
+    const std::array<float, 3> rgb = env.texel(t);
     for (int k = 0; k < nc; ++k)
       for (int ch = 0; ch < 3; ++ch) out.rgb[size_t(k)][size_t(ch)] += double(rgb[ch]) * y[size_t(k)] * omega;
   }

@@ -1,5 +1,6 @@
 // EnvMap geometry: cube face bases, texel directions and exact solid angles.
 #include <cmath>
+#include <cstring>
 
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
@@ -64,6 +65,58 @@ void texelDirection(const EnvMap& env, size_t index, double d[3], double* solidA
   d[2] = -s * x + c * z;
 }
 
+namespace {
+
+// IEEE binary16 → float (exact; subnormals, infinities and NaN kept).
+float halfToFloat(uint16_t h) {
+  const uint32_t sign = uint32_t(h & 0x8000u) << 16, exp = (h >> 10) & 0x1fu, mant = h & 0x3ffu;
+  uint32_t bits;
+  if (exp == 0) {
+    if (mant == 0) {
+      bits = sign;
+    } else {  // subnormal: normalise
+      int e = -1;
+      uint32_t m = mant;
+      do {
+        ++e;
+        m <<= 1;
+      } while (!(m & 0x400u));
+      bits = sign | uint32_t(127 - 15 - e) << 23 | (m & 0x3ffu) << 13;
+    }
+  } else if (exp == 31) {
+    bits = sign | 0x7f800000u | mant << 13;
+  } else {
+    bits = sign | (exp + 127 - 15) << 23 | mant << 13;
+  }
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+
+}  // namespace
+
+std::array<float, 3> EnvMap::texel(size_t index) const {
+  switch (storage()) {
+    case EnvStorage::Code8:
+      return {codeToLinear[codes[3 * index]], codeToLinear[codes[3 * index + 1]], codeToLinear[codes[3 * index + 2]]};
+    case EnvStorage::Half:
+      return {halfToFloat(halfRgb[3 * index]), halfToFloat(halfRgb[3 * index + 1]), halfToFloat(halfRgb[3 * index + 2])};
+    case EnvStorage::Float:
+      break;
+  }
+  return {rgb[3 * index], rgb[3 * index + 1], rgb[3 * index + 2]};
+}
+
+void EnvMap::toFloat() {
+  const EnvStorage from = storage();
+  if (from == EnvStorage::Float) return;
+  const size_t n = from == EnvStorage::Code8 ? codes.size() : halfRgb.size();
+  rgb.resize(n);
+  for (size_t i = 0; i < n; ++i) rgb[i] = from == EnvStorage::Code8 ? codeToLinear[codes[i]] : halfToFloat(halfRgb[i]);
+  RawVector<uint8_t>().swap(codes);
+  RawVector<uint16_t>().swap(halfRgb);
+}
+
 void validateEnvironment(EnvMap& env, bool clampInvalid) {
   const std::string& src = env.source.empty() ? std::string("environment") : env.source;
   if (env.width <= 0 || env.height <= 0) throw InputError(src, "empty image");
@@ -72,14 +125,31 @@ void validateEnvironment(EnvMap& env, bool clampInvalid) {
   if (env.layout == EnvLayout::LatLong && env.width != 2 * env.height)
     throw InputError(src, "a lat-long map must be twice as wide as high (got " + std::to_string(env.width) +
                               "x" + std::to_string(env.height) + ")");
-  if (env.rgb.size() != env.texelCount() * 3) throw InputError(src, "pixel data has the wrong size");
+  const size_t values = env.storage() == EnvStorage::Code8 ? env.codes.size()
+                        : env.storage() == EnvStorage::Half ? env.halfRgb.size()
+                                                             : env.rgb.size();
+  if (values != env.texelCount() * 3) throw InputError(src, "pixel data has the wrong size");
   long long bad = 0, nonFinite = 0;
-  for (float& v : env.rgb) {
-    if (!(v >= 0.0f) || std::isinf(v)) {
-      ++bad;
-      if (!std::isfinite(v)) ++nonFinite;
-      if (clampInvalid) v = 0.0f;
+  if (env.storage() == EnvStorage::Float) {
+    for (float& v : env.rgb) {
+      if (!(v >= 0.0f) || std::isinf(v)) {
+        ++bad;
+        if (!std::isfinite(v)) ++nonFinite;
+        if (clampInvalid) v = 0.0f;
+      }
     }
+  } else if (env.storage() == EnvStorage::Half) {
+    for (uint16_t& h : env.halfRgb) {
+      const bool special = (h & 0x7c00u) == 0x7c00u, negative = (h & 0x8000u) && (h & 0x7fffu);
+      if (special || negative) {
+        ++bad;
+        if (special) ++nonFinite;
+        if (clampInvalid) h = 0;
+      }
+    }
+  } else {
+    for (float v : env.codeToLinear)
+      if (!(v >= 0.0f) || std::isinf(v)) throw InputError(src, "invalid 8-bit decoding table");
   }
   if (bad == 0) return;
   if (!clampInvalid)

@@ -60,7 +60,7 @@ void checkSize(const std::string& path, long long w, long long h, double bytesPe
   checkInputMemory(path, "a " + std::to_string(w) + "x" + std::to_string(h) + " image", double(w) * double(h) * bytesPerPixel);
 }
 
-Image readOpenExr(const std::string& path) {
+Image readOpenExr(const std::string& path, bool compact) {
   const ExrHeaderFacts facts = checkExrHeader(path);  // before the library allocates what the header claims
   if (facts.width > 0 && facts.height > 0) checkSize(path, facts.width, facts.height, 12);
   Image img;
@@ -85,7 +85,22 @@ Image readOpenExr(const std::string& path) {
   const bool hasY = ch.findChannel("Y") != nullptr;
   const bool hasChroma = ch.findChannel("RY") || ch.findChannel("BY");
   const size_t n = size_t(w) * size_t(h);
-  img.rgb.assign(3 * n, 0.0f);
+  // Compact: every colour channel the file has is half, so it is read as halves.
+  bool allHalf = compact && (hasRgb || (hasY && !hasChroma));
+  for (const char* c : {"R", "G", "B", "Y"})
+    if (const Imf::Channel* ch = header.channels().findChannel(c); ch && ch->type != Imf::HALF) allHalf = false;
+  if (allHalf) {
+    img.halfRgb.resize(3 * n);  // every channel is written (OpenEXR fills absent ones with 0)
+    Imf::FrameBuffer fb;
+    const size_t xs = 3 * sizeof(uint16_t), ys = xs * size_t(w);
+    const char* names[3] = {"R", "G", "B"};
+    for (int c = 0; c < 3; ++c)
+      fb.insert(hasRgb ? names[c] : "Y", Imf::Slice::Make(Imf::HALF, img.halfRgb.data() + c, dw, xs, ys));
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    return img;
+  }
+  img.rgb.resize(3 * n);  // every channel is written (OpenEXR fills absent ones with 0)
 
   if (hasRgb || (hasY && !hasChroma)) {
     // Float slices into the interleaved buffer; Slice::Make offsets the base
@@ -190,7 +205,7 @@ struct StbFree {
   void operator()(void* p) const { stbi_image_free(p); }
 };
 
-Image readWithStb(const std::string& path, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode) {
+Image readWithStb(const std::string& path, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode, bool compact) {
   if (bytes.empty()) throw InputError(path, "cannot decode image: the file is empty");
   if (bytes.size() > size_t(std::numeric_limits<int>::max())) throw InputError(path, "file too large");
   const auto* buf = bytes.data();
@@ -227,6 +242,14 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
       std::unique_ptr<stbi_uc, StbFree> px(stbi_load_from_memory(buf, len, &w, &h, &channelsInFile, 3));
       if (!px) throw InputError(path, "cannot decode image: " + stbReason());
       checkSize(path, w, h, peakBytesPerPixel);
+      if (compact) {
+        // The codes as they are, with their linear values in the table.
+        img.codes = decltype(img.codes)(px.release(), stbi_image_free);
+        for (int c = 0; c < 256; ++c)
+          img.codeToLinear[size_t(c)] = float(ldrDecode == LdrDecode::Srgb ? srgbToLinear(c / 255.0) : std::pow(c / 255.0, 2.2));
+        img.width = w, img.height = h;
+        return img;
+      }
       codes.assign(px.get(), px.get() + 3 * size_t(w) * size_t(h));
     }
     // One table entry per code value, computed in double.
@@ -246,10 +269,10 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
 
 double srgbToLinear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
 
-Image readImage(const std::string& path, LdrDecode ldrDecode) {
+Image readImage(const std::string& path, LdrDecode ldrDecode, bool compact) {
   try {
-    if (isOpenExr(path)) return readOpenExr(path);
-    return readWithStb(path, readWholeFile(path), ldrDecode);
+    if (isOpenExr(path)) return readOpenExr(path, compact);
+    return readWithStb(path, readWholeFile(path), ldrDecode, compact);
   } catch (const Error&) {
     throw;
   } catch (const std::bad_alloc&) {

@@ -13,8 +13,14 @@
 // Every failure is an InputError naming the file and the library's reason.
 #pragma once
 
+#include <array>
+#include <cstdint>
+#include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
+
+#include "prtbake/raw_vector.h"
 
 namespace prtbake::detail {
 
@@ -26,13 +32,20 @@ enum class LdrDecode {
 
 struct Image {
   int width = 0, height = 0;
-  std::vector<float> rgb;      // width·height interleaved RGB, row 0 (top) first
+  // width·height interleaved RGB, row 0 (top) first, in one of three storages (as
+  // EnvMap, envmap.h): floats, or with `compact` reading, OpenEXR halves as halves and
+  // 8-bit images as codes with their linear values in codeToLinear (3·width·height
+  // bytes in stb_image's own buffer, handed over without a copy).
+  RawVector<float> rgb;
+  RawVector<uint16_t> halfRgb;
+  std::unique_ptr<uint8_t, void (*)(void*)> codes{nullptr, std::free};
+  std::array<float, 256> codeToLinear{};
   int envmap = -1;             // OpenEXR envmap attribute: -1 none, 0 lat-long, 1 cube
   int dataMinX = 0, dataMinY = 0;  // OpenEXR data window origin (0, 0 for other formats)
   std::string format;          // "OpenEXR", "Radiance HDR", "PNG/JPEG (8-bit)", ...
 };
 
-Image readImage(const std::string& path, LdrDecode ldrDecode = LdrDecode::Srgb);
+Image readImage(const std::string& path, LdrDecode ldrDecode = LdrDecode::Srgb, bool compact = false);
 
 // The exact sRGB EOTF of one code value in [0, 1].
 double srgbToLinear(double c);

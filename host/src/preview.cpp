@@ -64,7 +64,8 @@ Rgb sampleEnvironment(const EnvMap& env, const double d[3]) {
     const int row = std::clamp(int((0.5 - phi / kPi) * env.height), 0, env.height - 1);
     index = size_t(row) * size_t(env.width) + size_t(col);
   }
-  return {env.rgb[3 * index], env.rgb[3 * index + 1], env.rgb[3 * index + 2]};
+  const std::array<float, 3> t = env.texel(index);
+  return {t[0], t[1], t[2]};
 }
 
 LinearImage renderEnvPreview(const EnvMap* env, const ShCoeffs& radiance, int panelWidth) {

@@ -1,7 +1,8 @@
 // Fuzz target: a directory of six cube faces through loadEnvironment, with DESIGN.md's
 // orientation (`--layout faces`) or the GAMES202 framework's (`--layout games202`).
 // Input: byte 0 picks the options (bit 0: games202; bit 1: --clamp-invalid; bits 2-3:
-// the file extension, which only decides whether the face is found); then six parts
+// the file extension, which only decides whether the face is found; bit 4: compact
+// storage, as `prtbake env` loads); then six parts
 // (fuzz_target.h's splitParts), the faces posx, negx, posy, negy, posz, negz.
 #include <cmath>
 
@@ -21,11 +22,14 @@ PRTBAKE_FUZZ_TARGET(env_faces) {
   EnvLoadOptions options;
   options.layout = (data[0] & 1) ? "games202" : "faces";
   options.clampInvalid = (data[0] & 2) != 0;
+  options.compact = (data[0] & 16) != 0;
   EnvMap env;
   if (!fuzz::expectCleanFailure(dir, [&] { env = loadEnvironment(dir, options); })) return 0;
-  if (env.layout != EnvLayout::Cube || env.width <= 0 || env.rgb.size() != 3 * env.texelCount())
+  if (env.layout != EnvLayout::Cube || env.width <= 0 || env.texelCount() == 0 ||
+      env.rgb.size() + env.halfRgb.size() + env.codes.size() != 3 * env.texelCount())
     fuzz::fail("inconsistent cube sizes");
-  for (float v : env.rgb)
-    if (!std::isfinite(v) || v < 0) fuzz::fail("a loaded environment holds a negative or non-finite texel");
+  for (size_t t = 0; t < env.texelCount(); ++t)
+    for (float v : env.texel(t))
+      if (!std::isfinite(v) || v < 0) fuzz::fail("a loaded environment holds a negative or non-finite texel");
   return 0;
 }

@@ -18,12 +18,21 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
+
+#include "prtbake/raw_vector.h"
 
 namespace prtbake {
 
 enum class EnvLayout { Cube, LatLong };
+
+// How an EnvMap holds its texels: 32-bit floats (rgb), IEEE half floats (halfRgb, as
+// OpenEXR half files store them: half the memory), or 8-bit codes (codes, as PNG and
+// JPEG store them: a quarter) with the linear radiance of each code in codeToLinear.
+// The projection kernel reads every storage; texel() and toFloat() serve the host.
+enum class EnvStorage { Float, Half, Code8 };
 
 struct CubeFaceBasis {
   std::array<double, 3> axisU, axisV, axisN;
@@ -36,8 +45,12 @@ struct EnvMap {
   EnvLayout layout = EnvLayout::Cube;
   int width = 0, height = 0;  // cube: N and N (per face); lat-long: W and H (W = 2H)
   // Linear radiance, interleaved RGB. Cube: 6 faces × N rows × N columns, face-major.
-  // Lat-long: H rows × W columns.
-  std::vector<float> rgb;
+  // Lat-long: H rows × W columns. Exactly one of the three is filled (see EnvStorage);
+  // loadEnvironment fills rgb unless asked to keep the file's compact storage.
+  RawVector<float> rgb;
+  RawVector<uint16_t> halfRgb;
+  RawVector<uint8_t> codes;
+  std::array<float, 256> codeToLinear{};
   std::array<CubeFaceBasis, 6> faces = standardCubeBases();  // cube only
   double yawDegrees = 0.0;
   std::string source;                    // the path it was loaded from (for messages)
@@ -47,6 +60,11 @@ struct EnvMap {
   long long clampedTexels = 0;           // non-finite/negative texels replaced by 0 (clamp option)
 
   size_t texelCount() const { return layout == EnvLayout::Cube ? 6 * size_t(width) * width : size_t(width) * height; }
+  EnvStorage storage() const { return !codes.empty() ? EnvStorage::Code8 : !halfRgb.empty() ? EnvStorage::Half : EnvStorage::Float; }
+  // Linear RGB of texel `index` (the index of texelDirection), whatever the storage.
+  std::array<float, 3> texel(size_t index) const;
+  // Converts the texels to float storage (a no-op when they are).
+  void toFloat();
 };
 
 struct EnvLoadOptions {
@@ -57,6 +75,10 @@ struct EnvLoadOptions {
   // NaN/Inf/negative texels: an InputError by default; with clamp they become 0 and
   // are counted in EnvMap::clampedTexels.
   bool clampInvalid = false;
+  // Keep 8-bit images as 8-bit codes and OpenEXR half images as halves (EnvStorage)
+  // instead of converting them to floats: a 6 × 2048² JPEG cube takes 75 MB instead of
+  // 302 MB. Faces of mixed storage become floats.
+  bool compact = false;
 };
 
 // Loads an environment from a file (OpenEXR, Radiance .hdr, .png/.jpg cross or
