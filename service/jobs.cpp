@@ -416,7 +416,7 @@ std::string formatProblem(const std::string& jobFile, const Problem& p) {
   std::string s = jobFile + ": ";
   if (!p.job.empty()) s += "job '" + p.job + "': ";
   if (!p.key.empty()) s += p.key + ": ";
-  return s + p.what;
+  return Error::oneLine(s + p.what);  // a key or id from the file may hold a newline
 }
 
 std::string closestMatch(const std::string& word, const std::vector<std::string>& candidates) {
