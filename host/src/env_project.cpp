@@ -6,6 +6,7 @@
 #include <memory>
 #include <mutex>
 
+#include "kernel_options.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
@@ -144,6 +145,11 @@ double eventSeconds(const cl::Event& e) {
 
 }  // namespace
 
+std::string detail::envProjectOptions(int order, int vectorWidth, EnvStorage storage) {
+  return "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vectorWidth) +
+         " -DENV_TEXELS=" + std::to_string(int(storage));
+}
+
 EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvProjectOptions& options) {
   checkOrder(options.order);
   if (env.texelCount() == 0) throw InputError(env.source, "empty environment");
@@ -151,8 +157,7 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   const int vw = options.vectorWidth ? options.vectorWidth : vectorWidth(rt, order);
   if (vw != 1 && vw != 8 && vw != 16) throw UsageError("vector width", "must be 1, 8 or 16");
   const EnvStorage storage = env.storage();
-  const std::string buildOptions = "-DSH_ORDER=" + std::to_string(order) + " -DVW=" + std::to_string(vw) +
-                                   " -DENV_TEXELS=" + std::to_string(int(storage));
+  const std::string buildOptions = detail::envProjectOptions(order, vw, storage);
   const bool cube = env.layout == EnvLayout::Cube;
   // Cube faces on vector devices go by row moments (fewer accumulators, no basis per
   // texel), with the polynomial coefficients formed on the host; see env_project.cl.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "kernel_options.h"
 #include "lut_detail.h"
 #include "lut_sampling.clh"
 #include "prtbake/error.h"
@@ -67,7 +68,9 @@ std::vector<float> sampleTable(int samples, int first, int count, int nPad) {
   return t;
 }
 
-std::string buildOptions(const LutOptions& o) {
+}  // namespace
+
+std::string detail::lutOptions(const LutOptions& o) {
   std::string s = "-DLUT_NDF=" + std::to_string(o.ndf == LutNdf::Beckmann ? 1 : 0) +
                   " -DLUT_VIS=" + std::to_string(int(o.visibility)) +
                   " -DLUT_CLOTH=" + std::to_string(o.cloth ? 1 : 0) +
@@ -77,6 +80,8 @@ std::string buildOptions(const LutOptions& o) {
   if (o.fastMath) s += " -cl-fast-relaxed-math";
   return s;
 }
+
+namespace {
 
 // Per-point results of the kernel, one entry per point.
 struct KernelOut {
@@ -172,7 +177,7 @@ KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& po
   constexpr size_t kChunk = size_t(1) << 20;
   constexpr int kSums = 4 * LUT_OUT_FLOAT4S;
   const double build0 = rt.buildSeconds();
-  cl::Kernel kernel = rt.kernel("lut.cl", "lut_eval", buildOptions(o));
+  cl::Kernel kernel = rt.kernel("lut.cl", "lut_eval", detail::lutOptions(o));
   if (buildSeconds) *buildSeconds = rt.buildSeconds() - build0;
   KernelOut res;
   if (kernelSeconds) *kernelSeconds = 0;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "kernel_options.h"
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
 #include "prtbake/preview.h"
@@ -72,6 +73,11 @@ Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& o) {
 }
 
 }  // namespace
+
+std::string detail::previewMeshOptions(int order, int channels, int lightOrder, bool shBackground) {
+  return "-DSH_ORDER=" + std::to_string(order) + " -DCHANNELS=" + std::to_string(channels) +
+         " -DBG_ORDER=" + std::to_string(lightOrder) + " -DSH_BACKGROUND=" + (shBackground ? "1" : "0");
+}
 
 MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const TransportCoeffs& t, const ShCoeffs& radiance,
                                     const MeshPreviewOptions& o) {
@@ -143,10 +149,8 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   r.camera = desc;
 
   const bool shBackground = o.background == nullptr;
-  const std::string opts = "-DSH_ORDER=" + std::to_string(t.order) + " -DCHANNELS=" + std::to_string(t.channels) +
-                           " -DBG_ORDER=" + std::to_string(light.order) +
-                           " -DSH_BACKGROUND=" + (shBackground ? "1" : "0");
-  cl::Kernel k = rt.kernel("preview.cl", "preview_mesh", opts);
+  cl::Kernel k = rt.kernel("preview.cl", "preview_mesh",
+                           detail::previewMeshOptions(t.order, t.channels, light.order, shBackground));
   const int pixels = o.width * o.height;
   cl::Buffer camDev = rt.upload(camBuf), nodesDev = rt.upload(nodes), trisDev = rt.upload(packed),
              idxDev = rt.upload(idx), albedoDev = rt.upload(albedo), tDev = rt.upload(t.coeffs),

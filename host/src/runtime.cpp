@@ -1,9 +1,12 @@
 // OpenCL runtime: device choice, context/queue, program building and caching.
 #include "prtbake/runtime.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <chrono>
-#include <filesystem>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -121,6 +124,19 @@ std::string programCacheDir() {
   return "";
 }
 
+// PRTBAKE_BUILD_LOG=FILE: each program a process builds (kernel file and options) is
+// appended to FILE as one line, "file<TAB>options", in one write (processes may share the
+// file). scripts/nvptx_check.sh compiles every logged variant for another target.
+void logProgram(const std::string& file, const std::string& options) {
+  const char* log = std::getenv("PRTBAKE_BUILD_LOG");
+  if (!log || !*log) return;
+  const std::string line = file + "\t" + options + "\n";
+  const int fd = ::open(log, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return;
+  [[maybe_unused]] const ssize_t n = ::write(fd, line.data(), line.size());
+  ::close(fd);
+}
+
 // The cached binary of a program, or "" (no cache, no entry, unreadable).
 std::string readCachedBinary(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -216,6 +232,7 @@ cl::Program Runtime::program(const std::string& file, const std::string& options
   const std::string key = file + "\n" + options;
   if (auto it = programs_.find(key); it != programs_.end()) return it->second;
   const auto t0 = std::chrono::steady_clock::now();
+  logProgram(file, options);
   const std::string source = kernelSource(file);
   const std::string fullOptions = "-cl-std=CL1.2 " + options;
   // Device binaries are cached by a digest of everything that shapes them (expanded

@@ -1,0 +1,22 @@
+// Private: the build options of every program the host builds, one function per kernel
+// file, so that tests/kernel_variants.cpp can list every variant for the portability
+// check (scripts/nvptx_check.sh) from the same code the products use.
+#pragma once
+
+#include <string>
+
+#include "prtbake/envmap.h"
+#include "prtbake/lut.h"
+
+namespace prtbake::detail {
+
+// env_project.cl: SH order, vector width (1, 8, 16) and texel storage.
+std::string envProjectOptions(int order, int vectorWidth, EnvStorage storage);
+// lut.cl
+std::string lutOptions(const LutOptions& o);
+// transport.cl: SH order, visibility tested, channels (1 or 3), packet width (0, 8, 16).
+std::string transportOptions(int order, bool visibility, int channels, int packetWidth);
+// preview.cl: transport order and channels, lighting order, SH or image background.
+std::string previewMeshOptions(int order, int channels, int lightOrder, bool shBackground);
+
+}  // namespace prtbake::detail

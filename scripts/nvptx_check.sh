@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# GPU portability without a GPU: compiles kernel variants with clang for NVIDIA's OpenCL
+# target (nvptx64-nvidia-nvcl, OpenCL C 1.2), so that a construct only PoCL accepts
+# fails here. Each LIST holds "file<TAB>options" lines: build/tests/kernel_variants
+# prints every variant the host's option builders can produce, and PRTBAKE_BUILD_LOG
+# (scripts/test.sh) records what the tests actually built. Every kernels/*.cl file must
+# appear in some list.
+#
+# usage: scripts/nvptx_check.sh LIST...
+set -euo pipefail
+cd "$(dirname "$0")/.."
+[ $# -gt 0 ] || { sed -n '2,9p' "$0"; exit 2; }
+# clang-15 comes with PoCL (libpocl2 depends on it).
+clang=$(command -v clang-15 || command -v clang || true)
+[ -n "$clang" ] || { echo "nvptx check: clang not found (apt-get install clang-15)" >&2; exit 1; }
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+# Variants of the files in kernels/ (a test's own kernel directory is not ours to check).
+cat "$@" | sort -u | while IFS=$'\t' read -r file options; do
+  [ -f "kernels/$file" ] && printf '%s\t%s\n' "$file" "$options"
+done >"$work/variants" || true
+status=0
+for f in kernels/*.cl; do
+  if ! cut -f1 "$work/variants" | grep -qx "$(basename "$f")"; then
+    echo "nvptx check: no variant of $(basename "$f") is listed, so it is not checked" >&2
+    status=1
+  fi
+done
+compile() {
+  local file options n
+  IFS=$'\t' read -r file options <<<"$1"
+  n=$(printf '%s' "$1" | cksum | cut -d' ' -f1)
+  # shellcheck disable=SC2086
+  if ! "$clang" -target nvptx64-nvidia-nvcl -cl-std=CL1.2 -Xclang -finclude-default-header \
+      -Werror=implicit-function-declaration -I kernels $options -S -o "$work/$n.ptx" "kernels/$file" \
+      2>"$work/$n.err"; then
+    { echo "nvptx check: $file with '$options' does not compile for nvptx64-nvidia-nvcl:"; sed 's/^/  /' "$work/$n.err"; } >&2
+    return 1
+  fi
+  rm -f "$work/$n.ptx" "$work/$n.err"
+}
+export -f compile
+export clang work
+count=$(wc -l <"$work/variants")
+failed=0
+xargs -d '\n' -P "$(nproc)" -n 1 bash -c 'compile "$1"' _ <"$work/variants" || failed=1
+if [ "$failed" -ne 0 ]; then
+  echo "nvptx check: FAILED (of $count kernel variants)" >&2
+  exit 1
+fi
+echo "nvptx check: all $count kernel variants compile for nvptx64-nvidia-nvcl (OpenCL C 1.2)"
+exit $status
