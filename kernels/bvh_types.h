@@ -19,6 +19,18 @@ typedef struct {
   int count;
 } BvhNode;
 
+// One node of the 4-wide BVH the packet kernels traverse (128 bytes), collapsed from
+// the binary one (host/src/bvh.cpp): child slot i holds its box in lane i of the six
+// float4 (min x, min y, min z, max x, max y, max z) and
+//   count[i] = 0:  an inner node, child[i] its index in the wide array;
+//   count[i] > 0:  a leaf of count[i] triangles starting at child[i] (leaf order);
+//   count[i] < 0:  an empty slot, whose box (min = +1e30, max = −1e30) no ray enters.
+typedef struct {
+  float minX[4], minY[4], minZ[4], maxX[4], maxY[4], maxZ[4];
+  int child[4];
+  int count[4];
+} Bvh4Node;
+
 // Triangles in leaf order, for the Möller–Trumbore test: three float4 per
 // triangle, (v0, id), (e1 = v1 - v0, 0), (e2 = v2 - v0, 0), where `id` is the
 // index of the triangle in the mesh, stored bit-for-bit as an int (as_int on

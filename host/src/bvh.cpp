@@ -8,6 +8,8 @@
 
 #include "bvh_types.h"
 
+#include <vector>
+
 namespace prtbake {
 
 static_assert(sizeof(BvhNode) == 32, "BvhNode must be 32 bytes on the host and the device");
@@ -15,6 +17,8 @@ static_assert(sizeof(Bvh::Node) == sizeof(BvhNode), "Bvh::Node mirrors BvhNode")
 static_assert(offsetof(Bvh::Node, offset) == offsetof(BvhNode, offset), "Bvh::Node mirrors BvhNode");
 static_assert(offsetof(Bvh::Node, count) == offsetof(BvhNode, count), "Bvh::Node mirrors BvhNode");
 static_assert(BVH_TRI_FLOAT4S == 3, "packed triangles are three float4");
+static_assert(sizeof(Bvh4Node) == 128 && sizeof(Bvh::WideNode) == sizeof(Bvh4Node), "Bvh::WideNode mirrors Bvh4Node");
+static_assert(offsetof(Bvh::WideNode, child) == offsetof(Bvh4Node, child), "Bvh::WideNode mirrors Bvh4Node");
 
 namespace {
 
@@ -122,6 +126,46 @@ struct Builder {
   }
 };
 
+// The wide node for binary node `index` (an inner node), appended to `wide`; returns its
+// position. Slots take the node's children, then the inner child with the largest box
+// is replaced by its two children while a slot is free.
+int collapse(const std::vector<Bvh::Node>& nodes, int index, std::vector<Bvh::WideNode>& wide) {
+  auto area = [&](int i) {
+    const Bvh::Node& n = nodes[size_t(i)];
+    const double dx = n.bmax[0] - n.bmin[0], dy = n.bmax[1] - n.bmin[1], dz = n.bmax[2] - n.bmin[2];
+    return dx * dy + dy * dz + dz * dx;
+  };
+  std::vector<int> slots = {index + 1, nodes[size_t(index)].offset};
+  while (slots.size() < 4) {
+    int best = -1;
+    for (size_t k = 0; k < slots.size(); ++k)
+      if (nodes[size_t(slots[k])].count <= 0 && (best < 0 || area(slots[k]) > area(slots[size_t(best)]))) best = int(k);
+    if (best < 0) break;
+    const int n = slots[size_t(best)];
+    slots[size_t(best)] = n + 1;
+    slots.push_back(nodes[size_t(n)].offset);
+  }
+  const int at = int(wide.size());
+  wide.emplace_back();
+  Bvh::WideNode w{};
+  for (int k = 0; k < 4; ++k) {
+    if (k >= int(slots.size())) {
+      for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
+      w.child[k] = 0, w.count[k] = -1;
+      continue;
+    }
+    const Bvh::Node& n = nodes[size_t(slots[size_t(k)])];
+    for (int c = 0; c < 3; ++c) w.bmin[c][k] = n.bmin[c], w.bmax[c][k] = n.bmax[c];
+    if (n.count > 0) {
+      w.child[k] = n.offset, w.count[k] = n.count;
+    } else {
+      w.child[k] = collapse(nodes, slots[size_t(k)], wide), w.count[k] = 0;
+    }
+  }
+  wide[size_t(at)] = w;
+  return at;
+}
+
 }  // namespace
 
 Bvh buildBvh(const Mesh& mesh) {
@@ -152,6 +196,20 @@ Bvh buildBvh(const Mesh& mesh) {
   Builder b{prims, bvh.nodes};
   b.build(0, prims.size(), 0);
   bvh.depth = b.depth;
+  // The wide tree; a root that is a leaf becomes one wide node with that leaf in slot 0.
+  if (bvh.nodes[0].count > 0) {
+    Bvh::WideNode w{};
+    for (int k = 0; k < 4; ++k) {
+      for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
+      w.child[k] = 0, w.count[k] = -1;
+    }
+    for (int c = 0; c < 3; ++c) w.bmin[c][0] = bvh.nodes[0].bmin[c], w.bmax[c][0] = bvh.nodes[0].bmax[c];
+    w.child[0] = bvh.nodes[0].offset, w.count[0] = bvh.nodes[0].count;
+    bvh.wide.push_back(w);
+  } else {
+    bvh.wide.reserve(bvh.nodes.size() / 3 + 1);
+    collapse(bvh.nodes, 0, bvh.wide);
+  }
   bvh.triangles.resize(prims.size());
   bvh.packed.resize(prims.size() * 12);
   for (size_t i = 0; i < prims.size(); ++i) {

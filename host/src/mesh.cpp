@@ -183,6 +183,47 @@ Mesh makeBumpySphere(int targetTriangles) {
   return m;
 }
 
+Mesh makeTorusKnot(int segments, int sides, int p, int q) {
+  // The (p, q) torus knot r(t) = ((2 + cos qt) cos pt, (2 + cos qt) sin pt, sin qt), and a
+  // tube of radius 0.4 around it: ring i is a circle in the plane ⟂ T (the tangent), in
+  // the Frenet frame (N from the curve's second derivative, B = T × N).
+  const double kPi = 3.14159265358979323846, radius = 0.4;
+  auto curve = [&](double t, double* c) {
+    const double r = 2 + std::cos(q * t);
+    c[0] = r * std::cos(p * t), c[1] = r * std::sin(p * t), c[2] = std::sin(q * t);
+  };
+  Mesh m;
+  for (int i = 0; i < segments; ++i) {
+    const double t = 2 * kPi * i / segments, h = 1e-4;
+    double c0[3], cm[3], cp[3];
+    curve(t, c0), curve(t - h, cm), curve(t + h, cp);
+    double T[3], A[3], N[3], B[3];
+    for (int k = 0; k < 3; ++k) T[k] = cp[k] - cm[k], A[k] = cp[k] - 2 * c0[k] + cm[k];
+    auto normalize = [](double* v) {
+      const double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+      for (int k = 0; k < 3; ++k) v[k] /= l;
+    };
+    normalize(T);
+    const double ta = T[0] * A[0] + T[1] * A[1] + T[2] * A[2];
+    for (int k = 0; k < 3; ++k) N[k] = A[k] - ta * T[k];
+    normalize(N);
+    B[0] = T[1] * N[2] - T[2] * N[1], B[1] = T[2] * N[0] - T[0] * N[2], B[2] = T[0] * N[1] - T[1] * N[0];
+    for (int j = 0; j < sides; ++j) {
+      const double a = 2 * kPi * j / sides, ca = std::cos(a), sa = std::sin(a);
+      const double n[3] = {ca * N[0] + sa * B[0], ca * N[1] + sa * B[1], ca * N[2] + sa * B[2]};
+      pushVertex(m, c0[0] + radius * n[0], c0[1] + radius * n[1], c0[2] + radius * n[2], n[0], n[1], n[2]);
+    }
+  }
+  for (int i = 0; i < segments; ++i)
+    for (int j = 0; j < sides; ++j) {
+      const uint32_t a = uint32_t(i * sides + j), b = uint32_t(i * sides + (j + 1) % sides);
+      const uint32_t c = uint32_t(((i + 1) % segments) * sides + (j + 1) % sides),
+                     d = uint32_t(((i + 1) % segments) * sides + j);
+      m.indices.insert(m.indices.end(), {a, b, c, a, c, d});  // counter-clockwise seen from outside
+    }
+  return m;
+}
+
 Mesh makeSquare(double h, double height, int n, bool down) {
   Mesh m;
   for (int i = 0; i <= n; ++i)

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <functional>
 
+#include "kernel_options.h"
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
@@ -22,18 +23,12 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
 // scalar; 16 keeps the groups numerous enough to balance over the cores.
 constexpr size_t kLocalSize = 16;
-// Directions per launch: the kernels sum at most this many in float (16 lanes of a
-// packet: 64 additions each); the host adds the launches up in double. A float run of
-// additions of near-equal values (Y_0 over the visible rays) drifts with its length: the
-// BRDF table's 1024 additions per lane biased it by 1.4e-5 (measured), 64 keep it below
-// the transport's error at 2^24 samples. Default counts (1024) take one launch.
-constexpr int kSampleChunk = 1024;
 
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
 // The scene on the device and the kernels over lists of vertices. Each call takes
 // `samples` directions per vertex (the samples-point set of the seed and sampler) in
-// launches of at most kSampleChunk directions and returns means in double.
+// launches of at most detail::kTransportSampleChunk directions and returns means in double.
 class Tracer {
  public:
   Tracer(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup, bool visibility,
@@ -46,15 +41,8 @@ class Tracer {
       r.bvhNodes = bvh.nodes.size();
       r.degenerateTriangles = bvh.degenerateTriangles;
       unoccludable_ = detail::unoccludableFromBvh(mesh, bvh, setup);
-      if (bvh.nodes.empty()) {
-        // Every triangle has zero area: nothing can occlude. One leaf whose empty box
-        // (min > max) no ray enters.
-        nodes_ = rt.upload(std::vector<Bvh::Node>{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}});
-        tris_ = rt.upload(std::vector<float>(12, 0.0f));
-      } else {
-        nodes_ = rt.upload(bvh.nodes);
-        tris_ = rt.upload(bvh.packed);
-      }
+      nodes_ = detail::uploadBvhNodes(rt, bvh, o.packetWidth > 0);
+      tris_ = rt.upload(bvh.packed);
     } else {
       unoccludable_.assign(mesh.vertexCount(), 0);
       nodes_ = rt.upload(std::vector<float>(8, 0.0f));
@@ -132,9 +120,7 @@ class Tracer {
   cl::Kernel kernel(const char* scalarName, const char* packetName, int channels) {
     const bool packet = o_.packetWidth > 0;
     cl::Kernel k = rt_.kernel("transport.cl", packet ? packetName : scalarName,
-                              "-DSH_ORDER=" + std::to_string(o_.order) + " -DVISIBILITY=" + (visibility_ ? "1" : "0") +
-                                  " -DCHANNELS=" + std::to_string(channels) +
-                                  " -DBVH_PACKET=" + std::to_string(o_.packetWidth));
+                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
     k.setArg(2, origins_);
     k.setArg(3, frames_);
     k.setArg(5, nodes_);
@@ -161,8 +147,8 @@ class Tracer {
   void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, Collect&& collect) {
     const bool packet = o_.packetWidth > 0;
     k.setArg(0, nv);
-    for (int first = 0; first < samples; first += kSampleChunk) {
-      const int n = std::min(kSampleChunk, samples - first);
+    for (int first = 0; first < samples; first += detail::kTransportSampleChunk) {
+      const int n = std::min(detail::kTransportSampleChunk, samples - first);
       std::vector<float> dirs = detail::directionChunk(samples, first, n, o_.seed, o_.sampler);
       int padded = 0;
       if (packet) dirs = detail::packetDirections(dirs, padded);
@@ -227,6 +213,11 @@ int toleranceCount(const std::vector<uint32_t>& sampled, size_t stride, double t
 }
 
 }  // namespace
+
+std::string detail::transportOptions(int order, bool visibility, int channels, int packetWidth) {
+  return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
+         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packetWidth);
+}
 
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
   const auto tStart = Clock::now();
@@ -372,16 +363,13 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
   const Bvh bvh = buildBvh(mesh);
-  const std::vector<Bvh::Node> empty{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}};
-  cl::Buffer nodes = bvh.nodes.empty() ? rt.upload(empty) : rt.upload(bvh.nodes);
-  cl::Buffer tris = bvh.nodes.empty() ? rt.upload(std::vector<float>(12, 0.0f)) : rt.upload(bvh.packed);
-  const int nv = int(mesh.vertexCount());
   const bool packet = o.packetWidth > 0;
+  cl::Buffer nodes = detail::uploadBvhNodes(rt, bvh, packet), tris = rt.upload(bvh.packed);
+  const int nv = int(mesh.vertexCount());
   int padded = 0;
   const std::vector<float> dirs = packet ? detail::packetDirections(setup.dirs, padded) : setup.dirs;
   cl::Kernel k = rt.kernel("transport.cl", packet ? "transport_visibility_packet" : "transport_visibility",
-                           "-DSH_ORDER=" + std::to_string(o.order) + " -DVISIBILITY=1 -DCHANNELS=1 -DBVH_PACKET=" +
-                               std::to_string(o.packetWidth));
+                           detail::transportOptions(o.order, true, 1, o.packetWidth));
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, std::max<size_t>(size_t(nv) * o.samples, 16));
   // Held until the kernel has run: a kernel argument does not keep its buffer alive.
   const cl::Buffer origins = rt.upload(setup.origins), frames = rt.upload(setup.frames), dirsBuf = rt.upload(dirs);

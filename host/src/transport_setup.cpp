@@ -129,6 +129,27 @@ std::vector<std::array<double, 3>> sampleDirectionsLocal(int samples, uint64_t s
   return mortonSorted(out);
 }
 
+TransportRays transportRays(const Mesh& mesh, const TransportOptions& o) {
+  detail::checkTransportOptions(o);
+  const detail::RaySetup s = detail::makeRaySetup(mesh, o, false);
+  TransportRays r;
+  r.tMax = s.tMax;
+  const size_t nv = mesh.vertexCount();
+  r.origins.resize(3 * nv);
+  r.frames.resize(9 * nv);
+  for (size_t v = 0; v < nv; ++v) {
+    for (int c = 0; c < 3; ++c) r.origins[3 * v + c] = s.origins[4 * v + c];
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c) r.frames[9 * v + 3 * k + c] = s.frames[12 * v + 4 * k + c];
+  }
+  for (int first = 0; first < o.samples; first += detail::kTransportSampleChunk) {
+    const std::vector<float> d = detail::directionChunk(
+        o.samples, first, std::min(detail::kTransportSampleChunk, o.samples - first), o.seed, o.sampler);
+    for (size_t i = 0; i < d.size() / 4; ++i) r.directions.insert(r.directions.end(), {d[4 * i], d[4 * i + 1], d[4 * i + 2]});
+  }
+  return r;
+}
+
 namespace detail {
 
 std::vector<float> directionChunk(int samples, int first, int count, uint64_t seed, TransportSampler sampler) {

@@ -8,6 +8,7 @@
 
 #include "prtbake/bvh.h"
 #include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
 #include "prtbake/transport.h"
 
 namespace prtbake::detail {
@@ -21,6 +22,13 @@ struct RaySetup {
   size_t verticesWithoutNormal = 0;
 };
 
+// Directions per launch of the transport kernels: they sum at most this many in float
+// (16 lanes of a packet: 64 additions each); the host adds the launches up in double. A
+// float run of additions of near-equal values (Y_0 over the visible rays) drifts with its
+// length: the BRDF table's 1024 additions per lane biased it by 1.4e-5 (measured), 64
+// keep it below the transport's error at 2^24 samples. Default counts take one launch.
+constexpr int kTransportSampleChunk = 1024;
+
 // Directions first … first + count − 1 of the `samples`-point set of sampleDirectionsLocal,
 // Morton-ordered among themselves; count × 4 floats. The kernels take the set in such
 // chunks, so that no launch sums more than a chunk in float.
@@ -28,6 +36,10 @@ std::vector<float> directionChunk(int samples, int first, int count, uint64_t se
 // Origins and frames of every vertex; with `withDirections`, the whole direction set of
 // options.samples too (the CPU reference reads it; the device takes it in chunks).
 RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options, bool withDirections = true);
+// The BVH's nodes on the device: the 4-wide tree for the packet kernels (`wide`), else
+// the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
+// no ray enters.
+cl::Buffer uploadBvhNodes(Runtime& rt, const Bvh& bvh, bool wide);
 // Flags per vertex (see unoccludableVertices in transport.h) from an existing BVH.
 std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const RaySetup& setup);
 // The directions (N × 4) as the packet kernels read them: x, y, z as three rows of

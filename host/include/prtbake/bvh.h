@@ -27,6 +27,14 @@ struct Bvh {
     int32_t count;   // > 0: triangles in the leaf; inner node: −(1 + split axis)
   };
   std::vector<Node> nodes;           // nodes[0] is the root
+  // The same tree with four children per node (kernels/bvh_types.h, Bvh4Node): every
+  // inner node takes its children's children until it has four, expanding the largest
+  // child box first. wide[0] is the root (empty when `nodes` is).
+  struct WideNode {
+    float bmin[3][4], bmax[3][4];  // [axis][child slot]
+    int32_t child[4], count[4];
+  };
+  std::vector<WideNode> wide;
   std::vector<uint32_t> triangles;   // mesh triangle index of each leaf slot
   // Leaf-ordered triangles packed for the kernels: 12 floats per triangle,
   // (v0, id-as-int-bits), (v1 − v0, 0), (v2 − v0, 0).

@@ -129,6 +129,20 @@ struct ReferenceRays {
 TransportResult computeTransportReference(const Mesh& mesh, const TransportOptions& options,
                                           ReferenceRays* rays = nullptr);
 
+// The rays computeTransport traces for options.samples, as the float values its kernels
+// read: per vertex the origin p + ε n_g and the frame (t, b, n; n = 0 marks a vertex
+// without a normal), and the local directions (z along n) in the kernels' order (chunks of
+// 1024, each Morton-ordered; a packet is 16 consecutive directions). World direction of
+// sample s at vertex v: x_s t + y_s b + z_s n. For tracing the same rays with another
+// ray tracer (bench/bench_embree.cpp).
+struct TransportRays {
+  std::vector<float> origins;     // V × 3
+  std::vector<float> frames;      // V × 9: t, b, n
+  std::vector<float> directions;  // samples × 3
+  float tMax = 0;                 // the rays' length
+};
+TransportRays transportRays(const Mesh& mesh, const TransportOptions& options);
+
 // The kernel's per-ray visibility (vertexCount × samples bytes, 1 = unoccluded).
 std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& options);
 
