@@ -56,6 +56,8 @@ MatrixDtype parseMatrixDtype(const std::string& name) {
   throw UsageError("--dtype", "unknown dtype '" + name + "' (expected float32|float16)");
 }
 
+int glossyChannels(const Mesh& mesh, const GlossyOptions& o) { return detail::glossyChannels(mesh, o); }
+
 double glossyMatrixBytes(size_t vertices, int channels, int orderOut, int orderIn) {
   return double(vertices) * channels * double(orderOut * orderOut) * double(orderIn * orderIn) * 4.0;
 }

@@ -33,44 +33,50 @@ typedef float v8 __attribute__((vector_size(32)));
 #define LOAD8(dst, p) std::memcpy(&(dst), (p), 32)
 #define hsum8(v) ((((v)[0] + (v)[1]) + ((v)[2] + (v)[3])) + (((v)[4] + (v)[5]) + ((v)[6] + (v)[7])))
 
-// out[i * ldo + r] = x_i · c_r for i < ni (≤ 4 vertex rows xs[i]) and r < nr rows of c.
-#define PRTBAKE_DOT_TILE_BODY                                                                   \
-  const size_t d8 = dim / 8 * 8;                                                                \
-  for (size_t r0 = 0; r0 < nr; r0 += 4) {                                                       \
-    const size_t rn = std::min<size_t>(4, nr - r0);                                             \
-    v8 acc[4][4];                                                                               \
+typedef float v16 __attribute__((vector_size(64)));
+
+// out[i * ldo + r] = x_i · c_r for i < ni (≤ 4 vertex rows xs[i]) and r < nr rows of c:
+// tiles of 4 vertices × TR rows, W-wide vectors VT (16 accumulators and 5 operands fit
+// AVX-512's 32 registers; AVX2's 16 take 4 × 2).
+#define PRTBAKE_DOT_TILE_BODY(VT, W, TR)                                                        \
+  const size_t dw = dim / W * W;                                                                \
+  for (size_t r0 = 0; r0 < nr; r0 += TR) {                                                      \
+    const size_t rn = std::min<size_t>(TR, nr - r0);                                            \
+    VT acc[4][TR];                                                                              \
     for (auto& a : acc)                                                                         \
-      for (auto& b : a) b = v8{0, 0, 0, 0, 0, 0, 0, 0};                                         \
-    const float* cr[4];                                                                         \
-    for (size_t r = 0; r < 4; ++r) cr[r] = c + (r0 + std::min(r, rn - 1)) * dim;                \
+      for (auto& b : a) b = VT{} * 0.0f;                                                        \
+    const float* cr[TR];                                                                        \
+    for (size_t r = 0; r < TR; ++r) cr[r] = c + (r0 + std::min(r, rn - 1)) * dim;               \
     const float* xr[4];                                                                         \
     for (size_t i = 0; i < 4; ++i) xr[i] = xs[std::min(i, ni - 1)];                             \
-    for (size_t d = 0; d < d8; d += 8) {                                                        \
-      v8 c0, c1, c2, c3;                                                                        \
-      LOAD8(c0, cr[0] + d), LOAD8(c1, cr[1] + d), LOAD8(c2, cr[2] + d), LOAD8(c3, cr[3] + d);   \
+    for (size_t d = 0; d < dw; d += W) {                                                        \
+      VT cv[TR];                                                                                \
+      for (size_t r = 0; r < TR; ++r) std::memcpy(&cv[r], cr[r] + d, sizeof(VT));               \
       for (size_t i = 0; i < 4; ++i) {                                                          \
-        v8 x;                                                                                   \
-        LOAD8(x, xr[i] + d);                                                                    \
-        acc[i][0] += x * c0;                                                                    \
-        acc[i][1] += x * c1;                                                                    \
-        acc[i][2] += x * c2;                                                                    \
-        acc[i][3] += x * c3;                                                                    \
+        VT x;                                                                                   \
+        std::memcpy(&x, xr[i] + d, sizeof(VT));                                                 \
+        for (size_t r = 0; r < TR; ++r) acc[i][r] += x * cv[r];                                 \
       }                                                                                         \
     }                                                                                           \
     for (size_t i = 0; i < ni; ++i)                                                             \
       for (size_t r = 0; r < rn; ++r) {                                                         \
-        float s = hsum8(acc[i][r]);                                                             \
-        for (size_t d = d8; d < dim; ++d) s += xr[i][d] * cr[r][d];                             \
+        float s = 0.0f;                                                                         \
+        for (size_t k = 0; k < W; ++k) s += acc[i][r][k];                                       \
+        for (size_t d = dw; d < dim; ++d) s += xr[i][d] * cr[r][d];                             \
         out[i * ldo + r0 + r] = s;                                                              \
       }                                                                                         \
   }
 
+__attribute__((target("avx512f,avx512vl,fma"))) void dotTileAvx512(const float* const* xs, size_t ni, const float* c,
+                                                                   size_t nr, size_t dim, float* out, size_t ldo) {
+  PRTBAKE_DOT_TILE_BODY(v16, 16, 4)
+}
 __attribute__((target("avx2,fma"))) void dotTileAvx2(const float* const* xs, size_t ni, const float* c, size_t nr,
                                                      size_t dim, float* out, size_t ldo) {
-  PRTBAKE_DOT_TILE_BODY
+  PRTBAKE_DOT_TILE_BODY(v8, 8, 2)
 }
 void dotTileGeneric(const float* const* xs, size_t ni, const float* c, size_t nr, size_t dim, float* out, size_t ldo) {
-  PRTBAKE_DOT_TILE_BODY
+  PRTBAKE_DOT_TILE_BODY(v8, 8, 2)
 }
 
 // z[r] += a[r] * x for the rows r < nr of z (D each): the rank-1 updates of subspace iteration.
@@ -97,8 +103,13 @@ bool haveAvx2() {
   static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return yes;
 }
+bool haveAvx512() {
+  static const bool yes = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && haveAvx2();
+  return yes;
+}
 void dotTile(const float* const* xs, size_t ni, const float* c, size_t nr, size_t dim, float* out, size_t ldo) {
-  if (haveAvx2()) dotTileAvx2(xs, ni, c, nr, dim, out, ldo);
+  if (haveAvx512()) dotTileAvx512(xs, ni, c, nr, dim, out, ldo);
+  else if (haveAvx2()) dotTileAvx2(xs, ni, c, nr, dim, out, ldo);
   else dotTileGeneric(xs, ni, c, nr, dim, out, ldo);
 }
 void axpy(const float* a, size_t nr, const float* x, size_t dim, float* z) {
@@ -368,7 +379,7 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   int it = 0;
   std::vector<float> err;
   for (; it < iterations; ++it) {
-    c.fit(m, cluster, it == 0 ? 4 : 2);
+    c.fit(m, cluster, it == 0 ? 8 : 4);
     const size_t moved = c.assign(m, cluster, &err);
     // Empty clusters take the worst-reconstructed vertices.
     std::vector<size_t> count(K, 0);
@@ -386,7 +397,7 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
       break;
     }
   }
-  c.fit(m, cluster, 3);
+  c.fit(m, cluster, 8);
   // Weights and errors in double.
   CpcaResult r;
   r.clusters = int(K), r.vectors = int(P), r.vertexCount = V, r.dim = D, r.iterations = it;
@@ -447,8 +458,62 @@ double CpcaResult::compressionRatio() const {
   return s > 0 ? double(vertexCount) * double(dim) / s : 0;
 }
 
+namespace {
+
+// Symmetric m × m matrices (shadowed and unshadowed transfer with n_in = n_out) are packed
+// isometrically before clustering: the diagonal, then √2 × the lower triangle, so that
+// Euclidean norms, PCA and every error are unchanged and the work halves. Returns m, or 0
+// when the data are not such matrices.
+size_t symmetricSide(const float* data, size_t V, size_t D) {
+  const size_t m = size_t(std::lround(std::sqrt(double(D))));
+  if (m * m != D || m < 2) return 0;
+  for (size_t v = 0; v < V; ++v) {
+    const float* x = data + v * D;
+    for (size_t i = 0; i < m; ++i)
+      for (size_t j = 0; j < i; ++j)
+        if (x[i * m + j] != x[j * m + i]) return 0;
+  }
+  return m;
+}
+
+void packSymmetric(const float* x, size_t m, float* out) {
+  size_t k = 0;
+  for (size_t i = 0; i < m; ++i) out[k++] = x[i * m + i];
+  for (size_t i = 0; i < m; ++i)
+    for (size_t j = 0; j < i; ++j) out[k++] = float(std::sqrt(2.0) * x[i * m + j]);
+}
+
+void unpackSymmetric(const float* p, size_t m, float* x) {
+  size_t k = 0;
+  for (size_t i = 0; i < m; ++i) x[i * m + i] = p[k++];
+  for (size_t i = 0; i < m; ++i)
+    for (size_t j = 0; j < i; ++j) x[i * m + j] = x[j * m + i] = float(p[k++] / std::sqrt(2.0));
+}
+
+CpcaResult cpcaSearch(const float* data, size_t V, size_t D, const CpcaOptions& o);
+
+}  // namespace
+
 CpcaResult cpcaCompress(const float* data, size_t V, size_t D, const CpcaOptions& o) {
   if (V == 0 || D == 0) throw UsageError("cpca", "nothing to compress (no vertices)");
+  const size_t m = symmetricSide(data, V, D);
+  if (m == 0) return cpcaSearch(data, V, D, o);
+  const size_t dp = m * (m + 1) / 2;
+  std::vector<float> packed(V * dp);
+  for (size_t v = 0; v < V; ++v) packSymmetric(data + v * D, m, &packed[v * dp]);
+  CpcaResult r = cpcaSearch(packed.data(), V, dp, o);
+  // Means and basis rows back to full matrices (the basis stays orthonormal).
+  std::vector<float> means(size_t(r.clusters) * D), basis(size_t(r.clusters) * size_t(r.vectors) * D);
+  for (size_t k = 0; k < size_t(r.clusters); ++k) unpackSymmetric(&r.means[k * dp], m, &means[k * D]);
+  for (size_t k = 0; k < size_t(r.clusters) * size_t(r.vectors); ++k) unpackSymmetric(&r.basis[k * dp], m, &basis[k * D]);
+  r.means.swap(means);
+  r.basis.swap(basis);
+  r.dim = D;
+  return r;
+}
+
+namespace {
+CpcaResult cpcaSearch(const float* data, size_t V, size_t D, const CpcaOptions& o) {
   const int threads = o.threads > 0 ? o.threads : std::max(1, int(std::thread::hardware_concurrency()));
   if (o.iterations < 1 || o.iterations > 1000) throw UsageError("--cpca-iterations", "must lie in [1, 1000]");
   if (o.clusters > 0 && o.vectors >= 0 && !(o.targetError > 0)) {
@@ -490,6 +555,7 @@ CpcaResult cpcaCompress(const float* data, size_t V, size_t D, const CpcaOptions
   throw UsageError("--cpca-error", "no clustering of the ladder reaches relative RMS error " +
                                        std::to_string(o.targetError) + " while staying smaller than the matrices");
 }
+}  // namespace
 
 void cpcaReconstruct(const CpcaResult& c, size_t v, float* out) {
   const size_t k = size_t(c.clusterOf[v]), D = c.dim, P = size_t(c.vectors);

@@ -1,7 +1,10 @@
 // Glossy transfer files: the streamed .npy writer (float32/float16), the reader, the
 // sidecar, and the CPCA arrays.
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <map>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -120,20 +123,6 @@ int orderOfCount(size_t count) {
   return size_t(n) * size_t(n) == count ? n : 0;
 }
 
-// A whole .npy file of `descr` with the expected rank; returns the data bytes.
-std::string readArray(const std::string& path, const std::string& descr, size_t rank, std::vector<size_t>& shape) {
-  const std::string bytes = readFile(path);
-  const NpyInfo info = parseNpy(bytes, path);
-  if (info.descr != descr || info.fortran || info.shape.size() != rank)
-    throw InputError(path, "expected a C-order " + descr + " array of rank " + std::to_string(rank));
-  double n = 1;
-  for (size_t d : info.shape) n *= double(d);
-  const size_t elem = descr == "<f2" ? 2 : 4;
-  if (double(bytes.size() - info.dataOffset) != n * elem) throw InputError(path, "data size does not match the shape");
-  shape = info.shape;
-  return bytes.substr(info.dataOffset);
-}
-
 }  // namespace
 
 uint16_t floatToHalf(float f) {
@@ -214,8 +203,16 @@ std::vector<size_t> glossyNpyShape(size_t vertices, int channels, int orderOut, 
 }
 
 GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices) {
-  // The header first (a lying shape costs an error, not an allocation).
-  std::string head = readFile(path);
+  // The header first (a lying shape costs an error, not an allocation), then the data
+  // straight into the array.
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  struct Closer {
+    std::FILE* f;
+    ~Closer() { std::fclose(f); }
+  } closer{f};
+  std::string head(65536 + 12, '\0');
+  head.resize(std::fread(&head[0], 1, head.size(), f));
   const NpyInfo info = parseNpy(head, path);
   GlossyMatrices g;
   if (info.descr == "<f4") g.dtype = MatrixDtype::Float32;
@@ -236,16 +233,20 @@ GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices) {
   const double n = double(g.vertexCount) * g.channels * double(s[s.size() - 2]) * double(s[s.size() - 1]);
   checkInputMemory(path, "the transfer matrices", n * 4);
   const size_t elem = g.dtype == MatrixDtype::Float16 ? 2 : 4;
-  if (double(head.size() - info.dataOffset) != n * elem) throw InputError(path, "data size does not match the shape");
+  if (std::fseek(f, 0, SEEK_END) != 0) throw InputError(path, "cannot seek");
+  const long size = std::ftell(f);
+  if (size < 0 || double(size_t(size) - info.dataOffset) != n * elem)
+    throw InputError(path, "data size does not match the shape " + shapeText(s));
+  std::fseek(f, long(info.dataOffset), SEEK_SET);
   g.values.resize(size_t(n));
-  const char* data = head.data() + info.dataOffset;
   if (elem == 4) {
-    std::memcpy(g.values.data(), data, g.values.size() * 4);
+    if (std::fread(g.values.data(), 4, g.values.size(), f) != g.values.size()) throw InputError(path, "truncated");
   } else {
-    for (size_t i = 0; i < g.values.size(); ++i) {
-      uint16_t h;
-      std::memcpy(&h, data + 2 * i, 2);
-      g.values[i] = halfToFloat(h);
+    std::vector<uint16_t> h(1 << 16);
+    for (size_t at = 0; at < g.values.size(); at += h.size()) {
+      const size_t k = std::min(h.size(), g.values.size() - at);
+      if (std::fread(h.data(), 2, k, f) != k) throw InputError(path, "truncated");
+      for (size_t i = 0; i < k; ++i) g.values[at + i] = halfToFloat(h[i]);
     }
   }
   for (float v : g.values)
@@ -308,97 +309,168 @@ std::string glossySidecarBytes(const std::string& inputPath, const Mesh& mesh, c
   return j.dump(2) + "\n";
 }
 
-std::vector<std::pair<std::string, std::string>> cpcaFiles(const std::string& prefix, const CpcaResult& c, int orderOut,
-                                                           int orderIn, int channels, const std::string& source) {
-  using nlohmann::json;
+namespace {
+
+uint32_t crc32(const std::string& data) {
+  static uint32_t table[256];
+  static const bool init = [] {
+    for (uint32_t i = 0; i < 256; ++i) {
+      uint32_t c = i;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      table[i] = c;
+    }
+    return true;
+  }();
+  (void)init;
+  uint32_t c = 0xFFFFFFFFu;
+  for (unsigned char b : data) c = table[(c ^ b) & 0xff] ^ (c >> 8);
+  return c ^ 0xFFFFFFFFu;
+}
+
+void put16(std::string& s, uint32_t v) {
+  s += char(v & 0xff);
+  s += char((v >> 8) & 0xff);
+}
+void put32(std::string& s, uint32_t v) {
+  put16(s, v & 0xffff);
+  put16(s, v >> 16);
+}
+uint32_t get16(const std::string& s, size_t at) { return uint32_t(uint8_t(s[at])) | uint32_t(uint8_t(s[at + 1])) << 8; }
+uint32_t get32(const std::string& s, size_t at) { return get16(s, at) | get16(s, at + 2) << 16; }
+
+// A zip archive of stored (uncompressed) members, as numpy.savez writes without
+// compression. Members must stay below 4 GiB (no zip64).
+std::string zipStored(const std::vector<std::pair<std::string, std::string>>& members) {
+  std::string out, central;
+  for (const auto& [name, data] : members) {
+    if (data.size() >= 0xFFFFFFFFull) throw OutputError(name, "a .npz member of 4 GiB or more (zip64) is not supported");
+    const uint32_t crc = crc32(data), offset = uint32_t(out.size());
+    put32(out, 0x04034b50u);
+    put16(out, 20), put16(out, 0), put16(out, 0), put16(out, 0), put16(out, 0x21);  // version, flags, stored, time, date
+    put32(out, crc), put32(out, uint32_t(data.size())), put32(out, uint32_t(data.size()));
+    put16(out, uint32_t(name.size())), put16(out, 0);
+    out += name;
+    out += data;
+    put32(central, 0x02014b50u);
+    put16(central, 20), put16(central, 20), put16(central, 0), put16(central, 0), put16(central, 0), put16(central, 0x21);
+    put32(central, crc), put32(central, uint32_t(data.size())), put32(central, uint32_t(data.size()));
+    put16(central, uint32_t(name.size())), put16(central, 0), put16(central, 0), put16(central, 0), put16(central, 0);
+    put32(central, 0), put32(central, offset);
+    central += name;
+  }
+  const uint32_t cdOffset = uint32_t(out.size());
+  out += central;
+  put32(out, 0x06054b50u);
+  put16(out, 0), put16(out, 0), put16(out, uint32_t(members.size())), put16(out, uint32_t(members.size()));
+  put32(out, uint32_t(central.size())), put32(out, cdOffset), put16(out, 0);
+  return out;
+}
+
+// The members of a stored zip, by walking its local headers.
+std::map<std::string, std::string> unzipStored(const std::string& z, const std::string& path) {
+  std::map<std::string, std::string> out;
+  size_t at = 0;
+  while (at + 30 <= z.size() && get32(z, at) == 0x04034b50u) {
+    if (get16(z, at + 8) != 0) throw InputError(path, "compressed .npz members are not supported");
+    const size_t size = get32(z, at + 18), nameLen = get16(z, at + 26), extra = get16(z, at + 28);
+    if (at + 30 + nameLen + extra + size > z.size()) throw InputError(path, "truncated .npz");
+    out[z.substr(at + 30, nameLen)] = z.substr(at + 30 + nameLen + extra, size);
+    at += 30 + nameLen + extra + size;
+  }
+  if (out.empty()) throw InputError(path, "not a .npz archive");
+  return out;
+}
+
+// Parses one member .npy of the expected descr and rank.
+std::string memberArray(const std::map<std::string, std::string>& m, const std::string& name, const std::string& descr,
+                        size_t rank, std::vector<size_t>& shape, const std::string& path) {
+  const auto it = m.find(name + ".npy");
+  if (it == m.end()) throw InputError(path, "the CPCA archive has no '" + name + "'");
+  const NpyInfo info = parseNpy(it->second, path + ":" + name);
+  if (info.descr != descr || info.fortran || info.shape.size() != rank)
+    throw InputError(path, "'" + name + "' is not a C-order " + descr + " array of rank " + std::to_string(rank));
+  double n = 1;
+  for (size_t d : info.shape) n *= double(d);
+  if (double(it->second.size() - info.dataOffset) != n * 4) throw InputError(path, "'" + name + "' is truncated");
+  shape = info.shape;
+  return it->second.substr(info.dataOffset);
+}
+
+}  // namespace
+
+std::string cpcaNpzBytes(const CpcaResult& c, int orderOut, int orderIn, int channels) {
   const size_t K = size_t(c.clusters), P = size_t(c.vectors), V = c.vertexCount;
-  std::vector<std::pair<std::string, std::string>> files;
   std::vector<size_t> dimShape = glossyNpyShape(0, channels, orderOut, orderIn);
   dimShape.erase(dimShape.begin());
   std::vector<size_t> means{K}, basis{K, P};
   means.insert(means.end(), dimShape.begin(), dimShape.end());
   basis.insert(basis.end(), dimShape.begin(), dimShape.end());
-  files.emplace_back(prefix + ".means.npy", npyBytes("<f4", means, c.means));
-  files.emplace_back(prefix + ".basis.npy", npyBytes("<f4", basis, c.basis));
-  files.emplace_back(prefix + ".clusters.npy", npyBytes("<i4", {V}, c.clusterOf));
-  files.emplace_back(prefix + ".weights.npy", npyBytes("<f4", {V, P}, c.weights));
-  files.emplace_back(prefix + ".error.npy", npyBytes("<f4", {V}, c.vertexError));
-  auto base = [](const std::string& p) {
-    const size_t s = p.find_last_of('/');
-    return s == std::string::npos ? p : p.substr(s + 1);
-  };
-  json tried = json::array();
-  for (const auto& t : c.tried) tried.push_back({{"clusters", int(t[0])}, {"vectors", int(t[1])}, {"error", t[2]}});
-  json j = {{"tool", {{"name", "prtbake"}, {"version", version()}}},
-            {"product", "glossy_transfer_cpca"},
-            {"source", source},
-            {"clusters", K},
-            {"vectors", P},
-            {"vertices", V},
-            {"order_out", orderOut},
-            {"order_in", orderIn},
-            {"channels", channels},
-            {"files",
-             {{"means", base(prefix + ".means.npy")},
-              {"basis", base(prefix + ".basis.npy")},
-              {"clusters", base(prefix + ".clusters.npy")},
-              {"weights", base(prefix + ".weights.npy")},
-              {"error", base(prefix + ".error.npy")}}},
-            {"layout",
-             "M(v) ~ means[k] + sum_p weights[v, p] * basis[k, p], k = clusters[v]; every array row-major; "
-             "basis rows of a cluster are orthonormal; shading needs only means[k] l and basis[k, p] l "
-             "(per cluster, per light) and then K-independent work per vertex (docs/glossy.md)"},
-            {"error",
-             {{"definition", "relative RMS: per vertex |M - M~|_F / |M|_F; total sqrt(sum |M - M~|^2 / sum |M|^2)"},
-              {"total", c.totalError},
-              {"rms_vertex", c.rmsVertexError},
-              {"max_vertex", c.maxVertexError}}},
-            {"compression",
-             {{"stored_values", c.storedValues()},
-              {"float32_matrices_values", double(V) * double(c.dim)},
-              {"ratio", c.compressionRatio()}}},
-            {"iterations", c.iterations},
-            {"tried", tried},
-            {"seconds", c.seconds}};
-  files.emplace_back(prefix + ".json", j.dump(2) + "\n");
-  return files;
+  return zipStored({{"means.npy", npyBytes("<f4", means, c.means)},
+                    {"basis.npy", npyBytes("<f4", basis, c.basis)},
+                    {"clusters.npy", npyBytes("<i4", {V}, c.clusterOf)},
+                    {"weights.npy", npyBytes("<f4", {V, P}, c.weights)},
+                    {"error.npy", npyBytes("<f4", {V}, c.vertexError)},
+                    {"orders.npy", npyBytes("<i4", {3}, std::vector<int32_t>{orderOut, orderIn, channels})}});
 }
 
-CpcaResult readCpcaFiles(const std::string& prefix, int* orderOut, int* orderIn, int* channels) {
+std::string cpcaSidecarJson(const CpcaResult& c, const std::string& npzPath) {
   using nlohmann::json;
-  json j;
-  try {
-    j = json::parse(readFile(prefix + ".json"));
-    *orderOut = j.at("order_out").get<int>();
-    *orderIn = j.at("order_in").get<int>();
-    *channels = j.at("channels").get<int>();
-  } catch (const json::exception& e) {
-    throw InputError(prefix + ".json", std::string("not a CPCA sidecar: ") + e.what());
-  }
+  json tried = json::array();
+  for (const auto& t : c.tried) tried.push_back({{"clusters", int(t[0])}, {"vectors", int(t[1])}, {"error", t[2]}});
+  const json j = {
+      {"npz", npzPath},
+      {"clusters", c.clusters},
+      {"vectors", c.vectors},
+      {"vertices", c.vertexCount},
+      {"layout", "M(v) ~ means[k] + sum_p weights[v, p] * basis[k, p], k = clusters[v]; arrays row-major; the basis "
+                 "rows of a cluster are orthonormal; a shader needs means[k] l and basis[k, p] l per cluster and "
+                 "light, then P multiply-adds per vertex (docs/glossy.md)"},
+      {"error",
+       {{"definition", "relative RMS: per vertex |M - M~|_F / |M|_F (array 'error'); total sqrt(sum |M - M~|^2 / "
+                       "sum |M|^2)"},
+        {"total", c.totalError},
+        {"rms_vertex", c.rmsVertexError},
+        {"max_vertex", c.maxVertexError}}},
+      {"compression",
+       {{"stored_values", c.storedValues()},
+        {"matrix_values", double(c.vertexCount) * double(c.dim)},
+        {"ratio_to_float32", c.compressionRatio()}}},
+      {"iterations", c.iterations},
+      {"ladder_tried", tried},
+      {"seconds", c.seconds}};
+  return j.dump();
+}
+
+CpcaResult readCpcaNpz(const std::string& path, int* orderOut, int* orderIn, int* channels) {
+  const auto m = unzipStored(readFile(path), path);
+  std::vector<size_t> so, sm, sb, sc, sw;
+  const std::string ord = memberArray(m, "orders", "<i4", 1, so, path);
+  if (so[0] != 3) throw InputError(path, "'orders' must hold 3 values");
+  int32_t o[3];
+  std::memcpy(o, ord.data(), 12);
+  if (o[0] < 1 || o[0] > 32 || o[1] < 1 || o[1] > 32 || (o[2] != 1 && o[2] != 3))
+    throw InputError(path, "'orders' out of range");
+  *orderOut = o[0], *orderIn = o[1], *channels = o[2];
+  const size_t rank = o[2] == 3 ? 4 : 3;
+  const std::string mean = memberArray(m, "means", "<f4", rank, sm, path);
+  const std::string basis = memberArray(m, "basis", "<f4", rank + 1, sb, path);
+  const std::string ids = memberArray(m, "clusters", "<i4", 1, sc, path);
+  const std::string w = memberArray(m, "weights", "<f4", 2, sw, path);
   CpcaResult c;
-  std::vector<size_t> sm, sb, sc, sw;
-  const size_t rank = *channels == 3 ? 4 : 3;
-  const std::string m = readArray(prefix + ".means.npy", "<f4", rank, sm);
-  const std::string b = readArray(prefix + ".basis.npy", "<f4", rank + 1, sb);
-  const std::string ids = readArray(prefix + ".clusters.npy", "<i4", 1, sc);
-  const std::string w = readArray(prefix + ".weights.npy", "<f4", 2, sw);
-  c.clusters = int(sm[0]);
-  c.vectors = int(sb[1]);
-  c.vertexCount = sc[0];
-  c.dim = size_t(*channels) * (*orderOut) * (*orderOut) * (*orderIn) * (*orderIn);
-  if (sb[0] != sm[0] || sw[0] != sc[0] || sw[1] != sb[1])
-    throw InputError(prefix + ".json", "the CPCA arrays disagree in their shapes");
-  c.means.resize(m.size() / 4);
-  std::memcpy(c.means.data(), m.data(), m.size());
-  c.basis.resize(b.size() / 4);
-  std::memcpy(c.basis.data(), b.data(), b.size());
-  c.clusterOf.resize(ids.size() / 4);
-  std::memcpy(c.clusterOf.data(), ids.data(), ids.size());
-  c.weights.resize(w.size() / 4);
-  std::memcpy(c.weights.data(), w.data(), w.size());
-  if (c.means.size() != size_t(c.clusters) * c.dim) throw InputError(prefix + ".means.npy", "wrong size for the orders");
+  c.clusters = int(sm[0]), c.vectors = int(sb[1]), c.vertexCount = sc[0];
+  c.dim = size_t(o[2]) * o[0] * o[0] * o[1] * o[1];
+  if (sb[0] != sm[0] || sw[0] != sc[0] || sw[1] != sb[1] || mean.size() != size_t(c.clusters) * c.dim * 4)
+    throw InputError(path, "the CPCA arrays disagree in their shapes");
+  auto copy = [](const std::string& b, auto& v) {
+    v.resize(b.size() / 4);
+    std::memcpy(v.data(), b.data(), b.size());
+  };
+  copy(mean, c.means);
+  copy(basis, c.basis);
+  copy(ids, c.clusterOf);
+  copy(w, c.weights);
   for (int32_t k : c.clusterOf)
-    if (k < 0 || k >= c.clusters) throw InputError(prefix + ".clusters.npy", "cluster id out of range");
+    if (k < 0 || k >= c.clusters) throw InputError(path, "cluster id out of range");
   return c;
 }
 

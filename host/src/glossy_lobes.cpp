@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 
 #include "gauss_legendre.h"
 #include "prtbake/error.h"
@@ -21,7 +23,8 @@ void legendre(int n, double t, double* p) {
   for (int l = 2; l < n; ++l) p[l] = ((2 * l - 1) * t * p[l - 1] - (l - 1) * p[l - 2]) / l;
 }
 
-// ĥ_l = 2π ∫_0^1 P_l(t) dt: the Funk–Hecke factors of the hemisphere's indicator.
+}  // namespace
+
 double hemisphereFactor(int l) {
   const detail::GaussRule g = detail::gaussLegendre(l / 2 + 2);
   double s = 0;
@@ -32,6 +35,8 @@ double hemisphereFactor(int l) {
   }
   return 2 * kPi * s;
 }
+
+namespace {
 
 std::vector<double> phongFactors(double s, int n) {
   std::vector<double> g(size_t(std::max(n, 2)));
@@ -129,6 +134,60 @@ GlossyLobe ggxLobe(double roughness, int order) {
   }
   lobe.phongExponent = std::exp(0.5 * (a + b));
   return lobe;
+}
+
+namespace {
+std::vector<std::string> splitColon(const std::string& t) {
+  std::vector<std::string> parts;
+  size_t a = 0;
+  for (;;) {
+    const size_t b = t.find(':', a);
+    parts.push_back(t.substr(a, b == std::string::npos ? std::string::npos : b - a));
+    if (b == std::string::npos) return parts;
+    a = b + 1;
+  }
+}
+double number(const std::string& s, const std::string& option, const std::string& text) {
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  if (s.empty() || *end != '\0' || !std::isfinite(v)) throw UsageError(option, "expected a number in '" + text + "'");
+  return v;
+}
+}  // namespace
+
+GlossyLobe parseGlossyLobe(const std::string& text, int order, const std::string& option) {
+  const auto p = splitColon(text);
+  if (p.size() == 1 && p[0] == "cosine") {
+    GlossyLobe l = phongLobe(1.0, order);
+    l.name = "cosine (clamped cosine / pi)";
+    return l;
+  }
+  if (p.size() == 2 && p[0] == "phong") {
+    const double s = number(p[1], option, text);
+    if (!(s >= 0 && s <= 1e6)) throw UsageError(option, "the Phong exponent must lie in [0, 1e6]");
+    return phongLobe(s, order);
+  }
+  if (p.size() == 2 && p[0] == "ggx") return ggxLobe(number(p[1], option, text), order);
+  throw UsageError(option, "expected cosine, phong:S or ggx:R, got '" + text + "'");
+}
+
+BrdfSpec parseBrdfSpec(const std::string& text, const std::string& option) {
+  const auto p = splitColon(text);
+  BrdfSpec b;
+  if (p[0] == "lambertian" && p.size() <= 2) {
+    b.lambertian = true;
+    if (p.size() == 2) b.albedo = number(p[1], option, text);
+    if (!(b.albedo >= 0 && b.albedo <= 1)) throw UsageError(option, "the albedo must lie in [0, 1]");
+    return b;
+  }
+  if (p[0] == "ggx" && (p.size() == 2 || p.size() == 3)) {
+    b.roughness = number(p[1], option, text);
+    if (p.size() == 3) b.f0 = number(p[2], option, text);
+    if (!(b.roughness >= 0.05 && b.roughness <= 1)) throw UsageError(option, "roughness must lie in [0.05, 1]");
+    if (!(b.f0 >= 0 && b.f0 <= 1)) throw UsageError(option, "f0 must lie in [0, 1]");
+    return b;
+  }
+  throw UsageError(option, "expected ggx:R[:F0] or lambertian[:A], got '" + text + "'");
 }
 
 std::vector<double> brdfMatrixLocal(const BrdfSpec& brdf, int order, int q) {

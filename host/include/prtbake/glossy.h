@@ -95,6 +95,8 @@ struct GlossyResult {
 
 // Checks the options (UsageError naming the option, orders out of range included).
 void checkGlossyOptions(const GlossyOptions& options);
+// The channels a bake of `mesh` has: 3 when interreflected with a coloured albedo, else 1.
+int glossyChannels(const Mesh& mesh, const GlossyOptions& options);
 // Bytes of float32 matrices of `vertices` vertices: vertices × channels × n_out² × n_in² × 4.
 double glossyMatrixBytes(size_t vertices, int channels, int orderOut, int orderIn);
 
@@ -154,6 +156,9 @@ GlossyLobe phongLobe(double exponent, int order);
 // Phong factors fit the GGX ones best in least squares over l < order.
 GlossyLobe ggxLobe(double roughness, int order);
 
+// "cosine" (phong s=1), "phong:S", "ggx:R" (roughness R). UsageError naming `option` otherwise.
+GlossyLobe parseGlossyLobe(const std::string& text, int order, const std::string& option = "--lobe");
+
 // The seed's arbitrary-BRDF form (Sloan et al. 2002): in the local frame (z = normal),
 //   B_{k,k'} = ∫_{H} ∫_{H} Y_k(ω_o) f(ω_i, ω_o) cos θ_i Y_k'(ω_i) dω_i dω_o,
 // order² × order², for an isotropic microfacet BRDF: GGX D, height-correlated Smith G₂,
@@ -166,12 +171,18 @@ struct BrdfSpec {
   double f0 = 0.04;
   double albedo = 1.0;      // lambertian only
 };
+// "ggx:R[:F0]" (F0 default 0.04) or "lambertian[:A]". UsageError otherwise.
+BrdfSpec parseBrdfSpec(const std::string& text, const std::string& option = "--brdf");
 std::vector<double> brdfMatrixLocal(const BrdfSpec& brdf, int order, int quadraturePoints = 32);
 // Replaces the matrices of vertices first … first + count − 1 (layout of
 // GlossyResult::matrices) by their exit-radiance matrices E = S B Sᵀ M, in place; B of
 // order n_out. The frame: any rotation taking +z to the vertex normal (B is isotropic).
 void exitRadianceBlock(const Mesh& mesh, size_t first, size_t count, int channels, int orderOut, int orderIn,
                        const std::vector<double>& brdfLocal, float* values);
+
+// ĥ_l = 2π ∫_0^1 P_l(t) dt, the Funk–Hecke factors of the hemisphere's indicator H(n·ω):
+// ∫ H(n·ω) Y_lm(ω) dω = ĥ_l Y_lm(n) (ĥ_0 = 2π, ĥ_1 = π, ĥ_l = 0 for even l > 0).
+double hemisphereFactor(int l);
 
 // --- shading (the host reference of the preview and of docs/glsl/prt_glossy.glsl) ---
 // The "horizon-normalised" lobe: D(c) = Σ_l ĝ_l ĥ_l (2l+1)/(4π) P_l(c), c = n·R, is what the
@@ -247,14 +258,18 @@ float halfToFloat(uint16_t h);
 // samples, error estimate, bounces, timings, device).
 std::string glossySidecarBytes(const std::string& inputPath, const Mesh& mesh, const GlossyOptions& options,
                                const GlossyStats& stats, MatrixDtype dtype, const std::string& npyPath);
-// CPCA outputs beside `prefix`: prefix.means.npy [K, dim], prefix.basis.npy [K, P, dim],
-// prefix.clusters.npy int32 [V], prefix.weights.npy float32 [V, P], prefix.error.npy
-// float32 [V], and the sidecar prefix.json naming them. Returns (path, bytes) pairs.
-std::vector<std::pair<std::string, std::string>> cpcaFiles(const std::string& prefix, const CpcaResult& c,
-                                                           int orderOut, int orderIn, int channels,
-                                                           const std::string& sourcePath);
-// Reads them back (the shader-side layout, for the preview and the tests).
-CpcaResult readCpcaFiles(const std::string& prefix, int* orderOut, int* orderIn, int* channels);
+// CPCA output: one uncompressed NumPy .npz (numpy.load reads it) holding
+//   means    float32 [K, (3,) n_out², n_in²]      μ_k
+//   basis    float32 [K, P, (3,) n_out², n_in²]   b_kp, orthonormal per cluster
+//   clusters int32   [V]                          k of each vertex
+//   weights  float32 [V, P]                       w_vp = b_kp·(M_v − μ_k)
+//   error    float32 [V]                          |M_v − M̃_v|_F / |M_v|_F
+//   orders   int32   [3]                          n_out, n_in, channels
+// and its description for a sidecar (K, P, errors, compression, the layout).
+std::string cpcaNpzBytes(const CpcaResult& c, int orderOut, int orderIn, int channels);
+std::string cpcaSidecarJson(const CpcaResult& c, const std::string& npzPath);  // a JSON object
+// Reads a .npz written by cpcaNpzBytes (InputError otherwise).
+CpcaResult readCpcaNpz(const std::string& path, int* orderOut, int* orderIn, int* channels);
 
 // --- preview: the mesh shaded view-dependently with glossy transfer ---
 struct GlossyPreviewOptions {
