@@ -194,6 +194,10 @@ void NpyStreamWriter::commit() {
 
 const std::string& NpyStreamWriter::path() const { return impl_->file.path(); }
 
+std::string glossyNpyHeader(const std::vector<size_t>& shape, MatrixDtype dtype) {
+  return npyHeader(dtype == MatrixDtype::Float16 ? "<f2" : "<f4", shape);
+}
+
 std::vector<size_t> glossyNpyShape(size_t vertices, int channels, int orderOut, int orderIn) {
   std::vector<size_t> s{vertices};
   if (channels > 1) s.push_back(size_t(channels));

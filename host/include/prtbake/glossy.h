@@ -238,6 +238,8 @@ class NpyStreamWriter {
   struct Impl;
   Impl* impl_;
 };
+// The .npy (version 1.0) header of an array of `shape` in `dtype`, as NpyStreamWriter writes it.
+std::string glossyNpyHeader(const std::vector<size_t>& shape, MatrixDtype dtype);
 // The shape of a glossy .npy: [V, n_out², n_in²] or [V, 3, n_out², n_in²].
 std::vector<size_t> glossyNpyShape(size_t vertices, int channels, int orderOut, int orderIn);
 // Reads a glossy .npy (float32 or float16, 3-D or 4-D as above) as float32.
