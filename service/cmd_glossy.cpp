@@ -239,12 +239,23 @@ int runCpca(const CommandLine& cl) {
   } else {
     co.targetError = cl.getDouble("target-error", 0.02, 1e-6, 0.999);
   }
-  co.iterations = int(cl.getInt("iterations", 20, 1, 1000));
+  co.iterations = int(cl.getInt("iterations", 10, 1, 1000));
   co.threads = int(cl.getInt("threads", 0, 0, 1024));
-  const GlossyMatrices g = readGlossyNpy(input);
-  const size_t dim = g.vertexCount ? g.values.size() / g.vertexCount : 0;
+  // float32 bakes are mapped in place (no copy); float16 ones are read and widened.
+  std::unique_ptr<GlossyNpyMap> map;
+  GlossyMatrices g;
+  const float* values = nullptr;
+  try {
+    map = std::make_unique<GlossyNpyMap>(input);
+    g = map->info();
+    values = map->data();
+  } catch (const InputError&) {
+    g = readGlossyNpy(input);  // a float16 file, or the reader's own error
+    values = g.values.data();
+  }
+  const size_t dim = size_t(g.channels) * g.orderOut * g.orderOut * g.orderIn * g.orderIn;
   status(cl, "cpca: " + input + ": " + std::to_string(g.vertexCount) + " matrices of " + std::to_string(dim) + " values");
-  const CpcaResult c = cpcaCompress(g.values.data(), g.vertexCount, dim, co);
+  const CpcaResult c = cpcaCompress(values, g.vertexCount, dim, co);
   nlohmann::json side = {{"tool", {{"name", "prtbake"}, {"version", version()}}},
                          {"product", "glossy_transfer_cpca"},
                          {"input", {{"path", input}}},
@@ -273,7 +284,7 @@ PRTBAKE_COMMAND(Command{
      {"clusters", true, "K clusters"},
      {"vectors", true, "P PCA vectors per cluster"},
      {"target-error", true, "the largest total relative RMS error (default 0.02)"},
-     {"iterations", true, "the most clustering iterations (default 20)"},
+     {"iterations", true, "the most clustering iterations (default 10)"},
      {"threads", true, "host threads (default: all cores)"}},
     1, 1, runCpca});
 

@@ -379,7 +379,7 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   int it = 0;
   std::vector<float> err;
   for (; it < iterations; ++it) {
-    c.fit(m, cluster, it == 0 ? 8 : 4);
+    c.fit(m, cluster, it == 0 ? 4 : 2);
     const size_t moved = c.assign(m, cluster, &err);
     // Empty clusters take the worst-reconstructed vertices.
     std::vector<size_t> count(K, 0);
@@ -397,7 +397,7 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
       break;
     }
   }
-  c.fit(m, cluster, 8);
+  c.fit(m, cluster, 4);
   // Weights and errors in double.
   CpcaResult r;
   r.clusters = int(K), r.vectors = int(P), r.vertexCount = V, r.dim = D, r.iterations = it;

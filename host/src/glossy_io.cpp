@@ -1,5 +1,10 @@
 // Glossy transfer files: the streamed .npy writer (float32/float16), the reader, the
 // sidecar, and the CPCA arrays.
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -256,6 +261,52 @@ GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices) {
   for (float v : g.values)
     if (!std::isfinite(v)) throw InputError(path, "holds a non-finite value");
   return g;
+}
+
+GlossyNpyMap::GlossyNpyMap(const std::string& path) {
+  // The header through the reader's checks (it stops before reading data when the size
+  // is wrong), then a read-only mapping of the whole file.
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  std::string head(65536 + 12, '\0');
+  head.resize(std::fread(&head[0], 1, head.size(), f));
+  std::fclose(f);
+  const NpyInfo info = parseNpy(head, path);
+  if (info.descr != "<f4") throw InputError(path, "only float32 matrices can be mapped");
+  const auto& s = info.shape;
+  if (info.fortran || (s.size() != 3 && !(s.size() == 4 && s[1] == 3)))
+    throw InputError(path, "expected C-order shape [V, n_out^2, n_in^2] or [V, 3, n_out^2, n_in^2], got " + shapeText(s));
+  info_.channels = s.size() == 4 ? 3 : 1;
+  info_.vertexCount = s[0];
+  info_.orderOut = orderOfCount(s[s.size() - 2]);
+  info_.orderIn = orderOfCount(s[s.size() - 1]);
+  if (info_.orderOut < 1 || info_.orderIn < 1) throw InputError(path, "matrix dimensions are not squares: " + shapeText(s));
+  const double n = double(info_.vertexCount) * info_.channels * double(s[s.size() - 2]) * double(s[s.size() - 1]);
+  checkInputMemory(path, "the transfer matrices", n * 4);
+  const int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || double(size_t(st.st_size) - info.dataOffset) != n * 4) {
+    ::close(fd);
+    throw InputError(path, "data size does not match the shape " + shapeText(s));
+  }
+  length_ = size_t(st.st_size);
+  base_ = ::mmap(nullptr, length_, PROT_READ, MAP_PRIVATE, fd, 0);
+  ::close(fd);
+  if (base_ == MAP_FAILED) {
+    base_ = nullptr;
+    throw InputError(path, std::string("cannot map: ") + std::strerror(errno));
+  }
+  data_ = reinterpret_cast<const float*>(static_cast<const char*>(base_) + info.dataOffset);
+  for (size_t i = 0; i < size_t(n); ++i)
+    if (!std::isfinite(data_[i])) {
+      ::munmap(base_, length_);
+      throw InputError(path, "holds a non-finite value");
+    }
+}
+
+GlossyNpyMap::~GlossyNpyMap() {
+  if (base_) ::munmap(base_, length_);
 }
 
 std::string glossySidecarBytes(const std::string& inputPath, const Mesh& mesh, const GlossyOptions& o,

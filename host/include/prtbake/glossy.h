@@ -199,7 +199,7 @@ struct CpcaOptions {
   int clusters = 0;          // K (0: chosen from targetError)
   int vectors = 0;           // P (0: chosen from targetError)
   double targetError = 0;    // > 0: the cheapest (K, P) of a fixed ladder with total relative RMS ≤ this
-  int iterations = 20;       // the most Lloyd iterations (stops when < 0.1 % of vertices move)
+  int iterations = 10;       // the most Lloyd iterations (stops when < 0.1 % of vertices move)
   int threads = 0;           // 0: hardware concurrency
 };
 struct CpcaResult {
@@ -252,6 +252,24 @@ struct GlossyMatrices {
   std::vector<float> values;
 };
 GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices = 0);
+// A float32 glossy .npy mapped read-only instead of read (no copy, no fresh memory: the
+// CPCA of a large bake reads it in place). The header is checked as readGlossyNpy does;
+// info().values stays empty. A float16 file throws InputError (read it instead).
+class GlossyNpyMap {
+ public:
+  explicit GlossyNpyMap(const std::string& path);
+  ~GlossyNpyMap();
+  GlossyNpyMap(const GlossyNpyMap&) = delete;
+  GlossyNpyMap& operator=(const GlossyNpyMap&) = delete;
+  const float* data() const { return data_; }
+  const GlossyMatrices& info() const { return info_; }
+
+ private:
+  GlossyMatrices info_;
+  void* base_ = nullptr;
+  size_t length_ = 0;
+  const float* data_ = nullptr;
+};
 // IEEE half conversion (round to nearest even), used for float16 output.
 uint16_t floatToHalf(float f);
 float halfToFloat(uint16_t h);
