@@ -291,7 +291,7 @@ TEST_CASE("Preview: view-dependent, light rotation, CPCA, and the command line",
   CHECK(!test::fileExists(dir + "/x.png"));
 }
 
-TEST_CASE("CPCA recovers clusters of affine subspaces exactly; the ladder meets a target", "[glossy][cpca]") {
+TEST_CASE("CPCA recovers clusters of affine subspaces exactly, and the ladder meets a target", "[glossy][cpca]") {
   // Synthetic data on K = 3 affine subspaces of dimension P = 2 in R^D (D = 49: 7 × 7, not
   // symmetric): CPCA with K, P must reconstruct every point to float rounding
   // (kExactCpca = 1e-5 relative); with P = 1 it cannot (the second direction is lost).
