@@ -41,7 +41,7 @@ dict_of() {
     gltf) echo tests/fuzz/gltf.dict ;;
     obj) echo tests/fuzz/obj.dict ;;
     jobfile|sh_json) echo tests/fuzz/json.dict ;;
-    npy) echo tests/fuzz/npy.dict ;;
+    npy|glossy) echo tests/fuzz/npy.dict ;;
   esac
 }
 

@@ -2,10 +2,11 @@
 # with, and install_missing, which installs those of its arguments that are not installed
 # (as root, or via sudo).
 # PRTBAKE_BUILD_PKGS: the library and the CLI; PRTBAKE_TEST_PKGS adds the tests' needs
-# (Catch2, and Slurm and Munge for the throw-away cluster of the Slurm test).
+# (Catch2, Slurm and Munge for the throw-away cluster of the Slurm test, and Chromium, which
+# runs the glossy GLSL of docs/glsl/ headless in test_glossy_glsl).
 PRTBAKE_BUILD_PKGS="build-essential cmake pocl-opencl-icd ocl-icd-opencl-dev opencl-clhpp-headers clinfo \
 libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev libstb-dev nlohmann-json3-dev"
-PRTBAKE_TEST_PKGS="$PRTBAKE_BUILD_PKGS catch2 slurm-wlm munge"
+PRTBAKE_TEST_PKGS="$PRTBAKE_BUILD_PKGS catch2 slurm-wlm munge chromium"
 PRTBAKE_PKGS=$PRTBAKE_TEST_PKGS
 
 install_missing() {

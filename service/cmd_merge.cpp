@@ -92,6 +92,7 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
       problems.push_back("shard " + jobs::ShardSpec{i, n}.name() + " read other inputs than shard " +
                          jobs::ShardSpec{0, n}.name());
   if (!problems.empty()) return problems;
+  if (job.type->name == "glossy") return jobs::mergeGlossySplit(job, n, manifests, info);
 
   const TransportOptions options = jobs::transportOptionsFrom(job.params);
   TransportResult r;

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
+#include "glossy_cli.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
@@ -131,6 +132,9 @@ ShCoeffs readRadianceJson(const std::string& path) {
 }
 
 int previewMesh(const CommandLine& cl, const std::string& input, const std::string& output) {
+  if (cl.has("matrices") || cl.has("cpca")) return previewGlossyMesh(cl, input, output);
+  for (const char* name : {"lobe", "unnormalised"})
+    if (cl.has(name)) throw UsageError(std::string("--") + name, "only applies with --matrices or --cpca");
   const std::string transportPath = cl.get("transport"), envPath = cl.get("env"), bgPath = cl.get("background");
   const bool gltfInput = endsWith(input, ".gltf") || endsWith(input, ".glb");
   if (transportPath.empty() && !gltfInput)
@@ -193,6 +197,8 @@ PRTBAKE_COMMAND(Command{
     "       prtbake preview mesh MESH (--transport T.npy | a glTF copy with _PRT_* attributes) --env SH.json\n"
     "               -o OUT.png [--size WxH]\n"
     "               [--view front|side|top|YAW,PITCH] [--rotate-light DEG] [--exposure EV] [--background ENVMAP]\n"
+    "       prtbake preview mesh MESH (--matrices M.npy | --cpca C.npz) --env SH.json -o OUT.png\n"
+    "               [--lobe cosine|phong:S|ggx:R] [--unnormalised] [--size WxH] [--view V] [--rotate-light DEG]\n"
     "env: lat-long panels: the environment, its SH radiance reconstruction, and irradiance/pi.\n"
     "lut: each channel over N.V (x) and roughness (y, upward) with labelled axes.\n"
     "mesh: the mesh shaded with its baked transport under the environment's radiance SH\n"
@@ -209,7 +215,11 @@ PRTBAKE_COMMAND(Command{
      {"background", true, "mesh: an environment map to show behind the mesh (default: the SH reconstruction)"},
      {"view", true, "mesh: front|side|top|YAW,PITCH in degrees (default front)"},
      {"rotate-light", true, "mesh: rotate the lighting about +Y by DEG degrees"},
-     {"exposure", true, "exposure in stops before the sRGB curve (default 0)"}},
+     {"exposure", true, "exposure in stops before the sRGB curve (default 0)"},
+     {"matrices", true, "mesh: glossy transfer matrices (.npy of prtbake transport --transfer matrix)"},
+     {"cpca", true, "mesh: CPCA-compressed glossy transfer (.npz)"},
+     {"lobe", true, "mesh, glossy: cosine | phong:S | ggx:R (default phong:16)"},
+     {"unnormalised", false, "mesh, glossy: do not divide by the lobe's unoccluded white-sky response"}},
     2, 2, runPreview});
 
 }  // namespace

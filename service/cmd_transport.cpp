@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cli.h"
+#include "glossy_cli.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
@@ -27,6 +28,9 @@ int runTransport(const CommandLine& cl) {
   const std::string input = cl.positional.at(0);
   const std::string out = cl.get("output");
   if (out.empty()) throw UsageError("transport", "missing -o OUT.npy");
+  if (cl.getChoice("transfer", "vector", {"vector", "matrix"}) == "matrix") return runGlossyTransport(cl);
+  for (const char* name : {"order-out", "order-in", "dtype", "brdf", "cpca", "cpca-error"})
+    if (cl.has(name)) throw UsageError(std::string("--") + name, "only applies to --transfer matrix");
   TransportOptions o;
   o.mode = parseTransportMode(cl.get("mode", "shadowed"));
   o.order = int(cl.getInt("order", 3, 1, kMaxTransportOrder));
@@ -99,7 +103,12 @@ PRTBAKE_COMMAND(Command{
     "       [--order N] [--samples N | --tolerance E [--max-samples N]] [--seed S]\n"
     "       [--sampler hammersley|stratified|random] [--gltf OUT.glb] [--games202 transport.txt]\n"
     "       [--bounce-tolerance E] [--albedo A]\n"
-    "Writes OUT.npy (float32 [V, n^2], or [V, 3, n^2] for coloured interreflection) and OUT.json.",
+    "       prtbake transport MESH -o OUT.npy --transfer matrix [--mode M] [--order N | --order-out N --order-in N]\n"
+    "       [--samples N] [--seed S] [--bounces B] [--dtype float32|float16] [--brdf ggx:R[:F0]|lambertian[:A]]\n"
+    "       [--cpca K,P | --cpca-error E]\n"
+    "Writes OUT.npy (float32 [V, n^2], or [V, 3, n^2] for coloured interreflection) and OUT.json.\n"
+    "--transfer matrix: glossy transfer matrices [V, n_out^2, n_in^2] (docs/glossy.md), streamed to OUT.npy\n"
+    "by vertex blocks; --cpca also writes OUT.cpca.npz.",
     {{"output", true, "the .npy output (-o); the JSON sidecar goes beside it"},
      {"mode", true, "unshadowed | shadowed | interreflected (default shadowed)"},
      {"bounces", true, "interreflection bounces, 1..64 (default 3)"},
@@ -113,7 +122,14 @@ PRTBAKE_COMMAND(Command{
      {"seed", true, "sample set seed (default 0)"},
      {"albedo", true, "grey albedo for every vertex, overriding the file's"},
      {"gltf", true, "write a copy of the glTF input with _PRT_T* vertex attributes"},
-     {"games202", true, "write a GAMES202 transport.txt"}},
+     {"games202", true, "write a GAMES202 transport.txt"},
+     {"transfer", true, "vector (diffuse transport, default) | matrix (glossy transfer matrices)"},
+     {"order-out", true, "matrix: SH order of the transferred radiance, 2..6 (default --order)"},
+     {"order-in", true, "matrix: SH order of the environment, 2..6 (default --order)"},
+     {"dtype", true, "matrix: float32 (default) | float16"},
+     {"brdf", true, "matrix: write exit-radiance matrices for ggx:R[:F0] or lambertian[:A]"},
+     {"cpca", true, "matrix: also compress with K,P (clusters, PCA vectors) into OUT.cpca.npz"},
+     {"cpca-error", true, "matrix: also compress, choosing K and P for this relative RMS error"}},
     1, 1, runTransport});
 
 }  // namespace

@@ -310,6 +310,7 @@ std::vector<JobType> makeJobTypes() {
   };
   lut.execute = runLut;
   types.push_back(lut);
+  types.push_back(glossyJobType());
   return types;
 }
 

@@ -72,6 +72,13 @@ struct JobType {
 // The TransportOptions of a transport job's normalised parameters (job_types.cpp).
 TransportOptions transportOptionsFrom(const json& params);
 
+// The glossy transfer job (job_glossy.cpp): its type, the type of one shard's vertex range
+// of a split glossy job, and the merge of those ranges (after cmd_merge.cpp has checked every
+// partial's manifest; returns the problems, empty when merged and written).
+JobType glossyJobType();
+const JobType& glossyPartialType();
+std::vector<std::string> mergeGlossySplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
+
 // Every job type of this build (job_types.cpp).
 const std::vector<JobType>& jobTypes();
 const JobType* findJobType(const std::string& name);

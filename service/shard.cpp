@@ -112,7 +112,7 @@ std::string failureMarkerPath(const Job& job, int index, int count) {
 
 Job partialJob(const Job& job, ShardSpec s) {
   Job part = job;
-  part.type = &partialType();
+  part.type = job.type->name == "glossy" ? &glossyPartialType() : &partialType();
   part.label = job.label + " [shard " + s.name() + "]";
   part.outputs = {{"npy", partialPath(job, s.index, s.count)}};
   part.manifestPath = part.outputs.front().path + ".manifest.json";

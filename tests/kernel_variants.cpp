@@ -6,6 +6,7 @@
 #include <string>
 
 #include "kernel_options.h"
+#include "prtbake/glossy.h"
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"
 
@@ -39,6 +40,13 @@ int main() {
       for (int light : {1, 3, 8, kMaxShOrder})
         for (bool shBackground : {false, true})
           print("preview.cl", detail::previewMeshOptions(order, channels, light, shBackground));
+  for (int out = kMinGlossyOrder; out <= kMaxGlossyOrder; ++out)
+    for (int in = kMinGlossyOrder; in <= kMaxGlossyOrder; ++in)
+      for (bool visibility : {false, true}) print("glossy.cl", detail::glossyOptions(out, in, visibility));
+  for (int out = kMinGlossyOrder; out <= kMaxGlossyOrder; ++out)
+    for (int light : {1, 3, kMaxShOrder})
+      for (bool shBackground : {false, true})
+        print("glossy_preview.cl", detail::glossyPreviewOptions(out, light, shBackground));
   print("sh_eval.cl", "");
   return 0;
 }

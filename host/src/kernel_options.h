@@ -18,5 +18,9 @@ std::string lutOptions(const LutOptions& o);
 std::string transportOptions(int order, bool visibility, int channels, int packetWidth);
 // preview.cl: transport order and channels, lighting order, SH or image background.
 std::string previewMeshOptions(int order, int channels, int lightOrder, bool shBackground);
+// glossy.cl: output and input SH orders (the kernel's basis goes to the larger), visibility.
+std::string glossyOptions(int orderOut, int orderIn, bool visibility);
+// glossy_preview.cl: the matrices' output order, lighting order, SH or image background.
+std::string glossyPreviewOptions(int orderOut, int lightOrder, bool shBackground);
 
 }  // namespace prtbake::detail

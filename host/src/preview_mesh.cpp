@@ -10,6 +10,7 @@
 #include "prtbake/error.h"
 #include "prtbake/preview.h"
 #include "prtbake/sh_rotate.h"
+#include "preview_camera.h"
 
 namespace prtbake {
 namespace {
@@ -21,13 +22,9 @@ constexpr double kVerticalFovDeg = 35.0;  // of a landscape image (the narrower 
 constexpr double kFill = 0.9;             // the bounds' corners stay inside 90% of the frame
 constexpr size_t kLocalSize = 64;         // pixels per work-group (the traversal loops: PoCL runs it scalar)
 
-struct Camera {
-  double eye[3], forward[3], right[3], up[3];  // right and up scaled by tan(fov/2)
-  double vfovDeg;
-  double centre[3];
-  double radius;
-};
+}  // namespace
 
+namespace detail {
 Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& o) {
   double bmin[3], bmax[3];
   meshBounds(mesh, bmin, bmax);
@@ -72,7 +69,7 @@ Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& o) {
   return c;
 }
 
-}  // namespace
+}  // namespace detail
 
 std::string detail::previewMeshOptions(int order, int channels, int lightOrder, bool shBackground) {
   return "-DSH_ORDER=" + std::to_string(order) + " -DCHANNELS=" + std::to_string(channels) +
@@ -134,7 +131,7 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   for (size_t v = 0; v < mesh.vertexCount(); ++v)
     for (int c = 0; c < 3; ++c) albedo[4 * v + c] = mesh.albedo[3 * v + c];
 
-  const Camera cam = frameCamera(mesh, o);
+  const detail::Camera cam = detail::frameCamera(mesh, o);
   std::vector<float> camBuf(16, 0.0f);
   for (int k = 0; k < 3; ++k) {
     camBuf[k] = float(cam.eye[k]);

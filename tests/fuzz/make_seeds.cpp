@@ -18,6 +18,7 @@
 #include "prtbake/atomic_file.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/exr.h"
+#include "prtbake/glossy.h"
 #include "prtbake/transport.h"
 
 namespace fs = std::filesystem;
@@ -241,7 +242,8 @@ void jobFiles() {
   const std::string good = R"({"jobs": [
   {"id": "sky", "type": "env", "input": "in.exr", "outputs": {"json": "out.json", "games202": "light.txt"}, "order": 3},
   {"id": "mesh", "type": "transport", "input": "in.exr", "outputs": {"npy": "t.npy"}, "mode": "shadowed", "samples": 64, "split": true},
-  {"id": "lut", "type": "lut", "outputs": {"exr": "lut.exr"}, "size": 32, "tolerance": 0.001}]})";
+  {"id": "lut", "type": "lut", "outputs": {"exr": "lut.exr"}, "size": 32, "tolerance": 0.001},
+  {"id": "gloss", "type": "glossy", "input": "in.obj", "outputs": {"npy": "m.npy", "cpca": "m.npz"}, "order": 3, "samples": 64, "cpca_clusters": 2, "cpca_vectors": 1, "split": true}]})";
   // The manifest a finished "sky" job leaves (paths as a run in the fuzz scratch directory would give).
   std::ofstream(tmp() + "/in.exr") << "x";
   writeFileAtomic(tmp() + "/job.json", good);
@@ -260,6 +262,37 @@ void jobFiles() {
   put("jobfile", "demo", parts({slurp(gTests + "/../assets/demo.json"), ""}));
 }
 
+// Glossy matrices as the bake writes them (float32 and float16, grey and RGB) and the CPCA
+// .npz of a few of them.
+void glossy() {
+  const size_t vertices = 4;
+  for (int ch : {1, 3})
+    for (MatrixDtype dtype : {MatrixDtype::Float32, MatrixDtype::Float16}) {
+      const std::vector<size_t> shape = glossyNpyShape(vertices, ch, 3, 2);
+      Bytes bytes = glossyNpyHeader(shape, dtype);
+      const size_t n = vertices * size_t(ch) * 9 * 4;
+      for (size_t i = 0; i < n; ++i) {
+        const float v = 0.01f * float(i % 17);
+        if (dtype == MatrixDtype::Float32)
+          bytes.append(reinterpret_cast<const char*>(&v), 4);
+        else {
+          const uint16_t h = floatToHalf(v);
+          bytes.append(reinterpret_cast<const char*>(&h), 2);
+        }
+      }
+      const std::string name = std::string(ch == 1 ? "grey" : "rgb") + (dtype == MatrixDtype::Float32 ? "_f32" : "_f16");
+      put("glossy", name, Bytes(1, '\0') + bytes);
+      if (dtype == MatrixDtype::Float32) put("glossy", name + "_mapped", Bytes(1, '\1') + bytes);
+    }
+  const size_t dim = 9 * 4;
+  std::vector<float> data(8 * dim);
+  for (size_t i = 0; i < data.size(); ++i) data[i] = std::sin(0.37f * float(i)) + float(i / dim % 2);
+  CpcaOptions o;
+  o.clusters = 2, o.vectors = 1, o.threads = 1;
+  const CpcaResult c = cpcaCompress(data.data(), 8, dim, o);
+  put("glossy", "cpca", Bytes(1, '\2') + cpcaNpzBytes(c, 3, 2, 1));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -273,6 +306,7 @@ int main(int argc, char** argv) {
     meshes();
     shAndLut();
     jobFiles();
+    glossy();
   } catch (const std::exception& e) {
     std::cerr << "prtbake_make_seeds: " << e.what() << "\n";
     return 1;

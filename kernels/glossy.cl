@@ -1,0 +1,166 @@
+// glossy.cl: per-vertex glossy transfer matrices (DESIGN.md, "Glossy transfer").
+//
+// For a vertex p with normal n,
+//   M_ij(p) = ∫ V(p, ω) H(n·ω) Y_i(ω) Y_j(ω) dω.
+// With directions ω_s over the hemisphere of n and weights w_s (uniform samples: w_s = 1,
+// the host multiplies by 2π/N; the exact product rule of the unshadowed matrix: its
+// quadrature weights), the kernel returns
+//   G_ij = Σ_s w_s V_s Y_i(ω_s) Y_j(ω_s),   j ≤ i < SH_COUNT     (glossy_gram)
+// a Gram matrix Yᵀ W Y: only its lower triangle is summed, row by row
+// (index i(i+1)/2 + j). Interreflection adds, for rays that hit q_s,
+//   B_ij = Σ_s w_s Y_i(ω_s) ρ_c(q_s) T_j(q_s),  i < OUT_COUNT, j < IN_COUNT   (glossy_bounce)
+// with T(q) the diffuse transport interpolated with barycentrics.
+//
+// Vectorisation: a work-item takes one vertex and its directions BVH_PACKET (16) at a
+// time, as the transport kernels do: the packet is traced with bvh_packet_occluded /
+// bvh_packet_closest, SH are evaluated on float16 directions, and every (i, j) entry keeps
+// one float16 accumulator, so the batched product Yᵀ diag(w V) Y runs 16 lanes wide
+// (PoCL turns explicit vector types into AVX-512). The lanes are summed in a fixed order
+// at the end: deterministic, and no launch sums more than the directions it was given
+// (at most 1024: the host adds launches in double).
+//
+// Build options: SH_ORDER (glossy_gram: max(n_out, n_in)), OUT_ORDER and IN_ORDER
+// (glossy_bounce), VISIBILITY (0: no BVH access, for the unshadowed product rule).
+#define BVH_PACKET 16
+#define PK_CAT2(a, b) a##b
+#define PK_CAT(a, b) PK_CAT2(a, b)
+#define SH_T float16
+#include "sh.clh"
+#include "bvh_packet.clh"
+
+#ifndef SH_ORDER
+#define SH_ORDER 5
+#endif
+#ifndef OUT_ORDER
+#define OUT_ORDER SH_ORDER
+#endif
+#ifndef IN_ORDER
+#define IN_ORDER SH_ORDER
+#endif
+#ifndef VISIBILITY
+#define VISIBILITY 1
+#endif
+#define SH_COUNT (SH_ORDER * SH_ORDER)
+#define GRAM_COUNT (SH_COUNT * (SH_COUNT + 1) / 2)
+#define OUT_COUNT (OUT_ORDER * OUT_ORDER)
+#define IN_COUNT (IN_ORDER * IN_ORDER)
+
+inline float glossy_hsum(float16 a) {
+  float s = 0.0f;
+  for (int j = 0; j < 16; ++j) s += ((float*)&a)[j];
+  return s;
+}
+
+// Arguments (one work-item per vertex):
+// vertexCount, sampleCount: V and the directions of this launch
+// origins:  V × (x, y, z, w): ray origins offset along the geometric normal; w = 1 marks a
+//           vertex no triangle can reach (no rays traced; as transport.cl)
+// frames:   V × 3 float4 (t, b, n); n = 0 marks a vertex without a normal (zero output)
+// dirsSoA:  4 rows of paddedCount floats: local x, y, z and the weight w (0 in padding lanes)
+// nodes, tris, tMax: the BVH and the ray length
+// out:      V × GRAM_COUNT, the lower triangle of G, row by row
+__kernel void glossy_gram(int vertexCount, int sampleCount, __global const float4* origins,
+                          __global const float4* frames, __global const float* dirsSoA,
+                          __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
+                          __global float* out, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  float16 acc[GRAM_COUNT];
+  for (int k = 0; k < GRAM_COUNT; ++k) acc[k] = (float16)(0.0f);
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  if (dot(n, n) > 0.0f) {
+    const float3 o = origins[vi].xyz;
+    const bool trace = origins[vi].w == 0.0f;
+    const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    for (int s = 0; s < sampleCount; s += 16) {
+      const float16 lx = vload16(0, dirsSoA + s);
+      const float16 ly = vload16(0, dirsSoA + paddedCount + s);
+      const float16 lz = vload16(0, dirsSoA + 2 * paddedCount + s);
+      const float16 lw = vload16(0, dirsSoA + 3 * paddedCount + s);
+      const float16 dx = t.x * lx + b.x * ly + n.x * lz;
+      const float16 dy = t.y * lx + b.y * ly + n.y * lz;
+      const float16 dz = t.z * lx + b.z * ly + n.z * lz;
+      int16 live = (lane + s) < sampleCount;
+#if VISIBILITY
+      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
+#endif
+      float16 y[SH_COUNT];
+      sh_eval(SH_ORDER, dx, dy, dz, y);
+      const float16 w = select((float16)(0.0f), lw, live);
+      int k = 0;
+      for (int i = 0; i < SH_COUNT; ++i) {
+        const float16 wy = w * y[i];
+        for (int j = 0; j <= i; ++j, ++k) acc[k] = fma(wy, y[j], acc[k]);
+      }
+    }
+  }
+  for (int k = 0; k < GRAM_COUNT; ++k) out[(size_t)vi * GRAM_COUNT + k] = glossy_hsum(acc[k]);
+}
+
+// One channel of the interreflected term. Arguments as glossy_gram, and:
+// indices: T × (i0, i1, i2, 0) vertex indices of every mesh triangle
+// albedo:  V × (r, g, b, 0)
+// diffuse: V × diffuseChannels × IN_COUNT, the diffuse transport T at every vertex
+// channel: 0, 1, 2 (albedo channel; T's channel when diffuseChannels = 3)
+// out:     V × OUT_COUNT × IN_COUNT, Σ_s w_s Y_i(ω_s) ρ_c(q_s) T_j(q_s)
+__kernel void glossy_bounce(int vertexCount, int sampleCount, __global const float4* origins,
+                            __global const float4* frames, __global const float* dirsSoA,
+                            __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
+                            __global const int4* indices, __global const float4* albedo,
+                            __global const float* diffuse, int diffuseChannels, int channel,
+                            __global float* out, int paddedCount) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  __global const float4* frame = frames + (size_t)vi * 3;
+  float16 acc[OUT_COUNT * IN_COUNT];
+  for (int k = 0; k < OUT_COUNT * IN_COUNT; ++k) acc[k] = (float16)(0.0f);
+  const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
+  // A vertex no triangle can reach sees no surface: its term is zero.
+  if (dot(n, n) > 0.0f && origins[vi].w == 0.0f) {
+    const float3 o = origins[vi].xyz;
+    const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const int tc = diffuseChannels == 3 ? channel : 0;
+    for (int s = 0; s < sampleCount; s += 16) {
+      const float16 lx = vload16(0, dirsSoA + s);
+      const float16 ly = vload16(0, dirsSoA + paddedCount + s);
+      const float16 lz = vload16(0, dirsSoA + 2 * paddedCount + s);
+      const float16 lw = vload16(0, dirsSoA + 3 * paddedCount + s);
+      const float16 dx = t.x * lx + b.x * ly + n.x * lz;
+      const float16 dy = t.y * lx + b.y * ly + n.y * lz;
+      const float16 dz = t.z * lx + b.z * ly + n.z * lz;
+      const int16 live = (lane + s) < sampleCount;
+      int16 hitTri;
+      float16 hitU, hitV;
+      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &hitTri, &hitU, &hitV);
+      if (!pk_any(hitTri >= 0)) continue;
+      // g_j = ρ_c(q) T_j(q) lane by lane (a gather), zero where the ray escaped.
+      float16 g[IN_COUNT];
+      for (int k = 0; k < IN_COUNT; ++k) g[k] = (float16)(0.0f);
+      for (int j = 0; j < 16; ++j) {
+        const int tri = ((int*)&hitTri)[j];
+        if (tri < 0) continue;
+        // Barycentrics may stray by BVH_EDGE_EPS outside the triangle: clamp, renormalise.
+        float u = fmax(((float*)&hitU)[j], 0.0f), v = fmax(((float*)&hitV)[j], 0.0f);
+        float w = fmax(1.0f - u - v, 0.0f);
+        const float sum = u + v + w;
+        u /= sum, v /= sum, w /= sum;
+        const int4 idx = indices[tri];
+        const float4 rho4 = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
+        const float rho = channel == 0 ? rho4.x : (channel == 1 ? rho4.y : rho4.z);
+        __global const float* t0 = diffuse + ((size_t)idx.x * diffuseChannels + tc) * IN_COUNT;
+        __global const float* t1 = diffuse + ((size_t)idx.y * diffuseChannels + tc) * IN_COUNT;
+        __global const float* t2 = diffuse + ((size_t)idx.z * diffuseChannels + tc) * IN_COUNT;
+        for (int k = 0; k < IN_COUNT; ++k) ((float*)&g[k])[j] = rho * (w * t0[k] + u * t1[k] + v * t2[k]);
+      }
+      float16 y[OUT_COUNT];
+      sh_eval(OUT_ORDER, dx, dy, dz, y);
+      const float16 wl = select((float16)(0.0f), lw, live);
+      for (int i = 0; i < OUT_COUNT; ++i) {
+        const float16 wy = wl * y[i];
+        for (int j = 0; j < IN_COUNT; ++j) acc[i * IN_COUNT + j] = fma(wy, g[j], acc[i * IN_COUNT + j]);
+      }
+    }
+  }
+  for (int k = 0; k < OUT_COUNT * IN_COUNT; ++k) out[(size_t)vi * OUT_COUNT * IN_COUNT + k] = glossy_hsum(acc[k]);
+}

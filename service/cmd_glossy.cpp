@@ -1,0 +1,292 @@
+// prtbake transport --transfer matrix (glossy transfer matrices), prtbake cpca, and the
+// glossy mesh preview (see prtbake/glossy.h, docs/glossy.md).
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "glossy_cli.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/glossy.h"
+#include "prtbake/limits.h"
+#include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
+
+namespace prtbake::cli {
+namespace {
+
+std::string stem(const std::string& path) {
+  const size_t slash = path.find_last_of('/'), dot = path.find_last_of('.');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) return path.substr(0, dot);
+  return path;
+}
+
+std::string mib(double bytes) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.0f MiB", bytes / (1024.0 * 1024.0));
+  return b;
+}
+
+// --cpca K,P | --cpca-error E (nullopt-like: clusters = 0 and targetError = 0 when absent).
+bool cpcaOptions(const CommandLine& cl, CpcaOptions& co, const std::string& kp = "cpca", const std::string& err = "cpca-error") {
+  if (cl.has(kp) && cl.has(err)) throw UsageError("--" + err, "give --" + kp + " K,P or --" + err + " E, not both");
+  if (cl.has(kp)) {
+    const std::vector<double> v = cl.getDoubles(kp, 2);
+    if (!(v[0] >= 1 && v[0] <= 65536 && v[0] == std::floor(v[0])) || !(v[1] >= 0 && v[1] <= 64 && v[1] == std::floor(v[1])))
+      throw UsageError("--" + kp, "expected K,P with K in [1, 65536] clusters and P in [0, 64] vectors");
+    co.clusters = int(v[0]), co.vectors = int(v[1]);
+    return true;
+  }
+  if (cl.has(err)) {
+    co.targetError = cl.getDouble(err, 0.02, 1e-6, 0.999);
+    return true;
+  }
+  return false;
+}
+
+std::string cpcaLine(const CpcaResult& c) {
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "cpca: K = %d clusters, P = %d vectors, relative RMS error %.4f total (per vertex: RMS %.4f, max %.4f), "
+                "%.1fx smaller than float32 matrices, %d iterations, %.2f s",
+                c.clusters, c.vectors, c.totalError, c.rmsVertexError, c.maxVertexError, c.compressionRatio(),
+                c.iterations, c.seconds);
+  return line;
+}
+
+}  // namespace
+
+int runGlossyTransport(const CommandLine& cl) {
+  const std::string input = cl.positional.at(0), out = cl.get("output");
+  if (out.empty()) throw UsageError("transport", "missing -o OUT.npy");
+  for (const char* name : {"tolerance", "max-samples", "sampler", "gltf", "games202"})
+    if (cl.has(name)) throw UsageError(std::string("--") + name, "only applies to --transfer vector");
+  GlossyOptions o;
+  o.mode = parseTransportMode(cl.get("mode", "shadowed"));
+  const int order = int(cl.getInt("order", 3, 1, 1000));
+  o.orderOut = int(cl.getInt("order-out", order, 1, 1000));
+  o.orderIn = int(cl.getInt("order-in", order, 1, 1000));
+  o.samples = int(cl.getInt("samples", 1024, 1, 1 << 24));
+  o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
+  o.bounces = int(cl.getInt("bounces", 3, 1, 64));
+  o.bounceTolerance = cl.getDouble("bounce-tolerance", 1e-4, 0, 1e30);
+  if (cl.has("bounces") && o.mode != TransportMode::Interreflected)
+    throw UsageError("--bounces", "only applies to --mode interreflected");
+  if (cl.has("albedo")) {
+    const double a = cl.getDouble("albedo", 1, 0, 1);
+    o.albedoOverride = std::array<float, 3>{float(a), float(a), float(a)};
+  }
+  const MatrixDtype dtype = parseMatrixDtype(cl.get("dtype", "float32"));
+  const bool brdf = cl.has("brdf");
+  const BrdfSpec brdfSpec = brdf ? parseBrdfSpec(cl.get("brdf")) : BrdfSpec{};
+  CpcaOptions co;
+  const bool cpca = cpcaOptions(cl, co);
+  checkGlossyOptions(o);  // orders and counts before anything is read
+
+  const Mesh mesh = loadMesh(input);
+  const size_t nv = mesh.vertexCount();
+  const int channels = glossyChannels(mesh, o);
+  const double bytes = glossyMatrixBytes(nv, channels, o.orderOut, o.orderIn);
+  if (cpca && bytes > double(inputMemoryLimit()))
+    throw UsageError("--cpca", "CPCA holds the matrices in memory: " + std::to_string(nv) + " vertices at orders " +
+                                   std::to_string(o.orderOut) + " x " + std::to_string(o.orderIn) + " need " + mib(bytes) +
+                                   ", more than the memory limit of " + mib(double(inputMemoryLimit())) +
+                                   " (set PRTBAKE_INPUT_LIMIT_MB, or run prtbake cpca on a vertex range)");
+  status(cl, "transport: " + input + ": " + std::to_string(nv) + " vertices, " + std::to_string(mesh.triangleCount()) +
+                 " triangles, transfer matrices " + std::to_string(o.orderOut * o.orderOut) + " x " +
+                 std::to_string(o.orderIn * o.orderIn) + ", " + transportModeName(o.mode) + ", " +
+                 std::to_string(o.samples) + " samples, " + mib(bytes) + " of float32 streamed to " + out);
+  Runtime rt(cl.device());
+  const std::vector<double> b = brdf ? brdfMatrixLocal(brdfSpec, o.orderOut) : std::vector<double>{};
+  NpyStreamWriter writer(out, glossyNpyShape(nv, channels, o.orderOut, o.orderIn), dtype);
+  std::vector<float> kept, block;
+  if (cpca) kept.reserve(size_t(bytes / 4));
+  const GlossyStats st = bakeGlossyTransfer(rt, mesh, o, [&](size_t f, size_t n, const float* values) {
+    const size_t count = n * size_t(channels) * o.orderOut * o.orderOut * o.orderIn * o.orderIn;
+    if (brdf) {
+      block.assign(values, values + count);
+      exitRadianceBlock(mesh, f, n, channels, o.orderOut, o.orderIn, b, block.data());
+      values = block.data();
+    }
+    writer.append(values, count);
+    if (cpca) kept.insert(kept.end(), values, values + count);
+  });
+  nlohmann::json side = nlohmann::json::parse(glossySidecarBytes(input, mesh, o, st, dtype, out));
+  if (brdf)
+    side["brdf"] = {{"spec", cl.get("brdf")},
+                    {"quantity", "exit-radiance matrices E = S B S^T M: environment SH -> SH of the exit radiance over "
+                                 "the outgoing direction (docs/glossy.md)"}};
+  std::vector<std::pair<std::string, std::string>> extra;
+  CpcaResult c;
+  if (cpca) {
+    c = cpcaCompress(kept.data(), nv, kept.size() / std::max<size_t>(nv, 1), co);
+    const std::string npz = stem(out) + ".cpca.npz";
+    extra.emplace_back(npz, cpcaNpzBytes(c, o.orderOut, o.orderIn, channels));
+    side["cpca"] = nlohmann::json::parse(cpcaSidecarJson(c, npz));
+  }
+  extra.emplace_back(stem(out) + ".json", side.dump(2) + "\n");
+  std::vector<std::unique_ptr<AtomicFile>> files;
+  for (const auto& [path, data] : extra) {
+    files.push_back(std::make_unique<AtomicFile>(path));
+    files.back()->write(data);
+  }
+  writer.commit();
+  for (auto& f : files) f->commit();
+  char line[256];
+  std::snprintf(line, sizeof line, "transport: %.3f s (kernels %.3f s), %.3g rays, std. error max %.3g mean %.3g%s",
+                st.totalSeconds, st.kernelSeconds, double(st.rays), st.maxStdError, st.meanStdError,
+                o.mode == TransportMode::Interreflected ? (", " + std::to_string(st.bouncesUsed) + " bounces").c_str() : "");
+  status(cl, line);
+  if (cpca) status(cl, cpcaLine(c));
+  return 0;
+}
+
+int previewGlossyMesh(const CommandLine& cl, const std::string& input, const std::string& output) {
+  const std::string envPath = cl.get("env");
+  if (envPath.empty()) throw UsageError("preview", "mesh previews need --env SH.json (radiance coefficients)");
+  if (cl.has("transport")) throw UsageError("--transport", "give --transport (diffuse) or --matrices/--cpca (glossy), not both");
+  if (cl.has("matrices") && cl.has("cpca")) throw UsageError("--cpca", "give --matrices M.npy or --cpca C.npz, not both");
+  GlossyPreviewOptions go;
+  MeshPreviewOptions& o = go.view;
+  // Size, view and light rotation as the diffuse preview parses them.
+  if (cl.has("size")) {
+    const std::string s = cl.get("size");
+    char* end = nullptr;
+    const long w = std::strtol(s.c_str(), &end, 10);
+    long h = w * 3 / 4;
+    if (end != s.c_str() && *end == 'x') {
+      const char* p = end + 1;
+      h = std::strtol(p, &end, 10);
+      if (end == p) h = -1;
+    }
+    if (end == s.c_str() || *end != '\0' || w < 8 || w > 16384 || h < 8 || h > 16384)
+      throw UsageError("--size", "expected WxH with W and H in [8, 16384], got '" + s + "'");
+    o.width = int(w), o.height = int(h);
+  }
+  const std::string view = cl.get("view", "front");
+  if (view == "front") o.yawDeg = 0, o.pitchDeg = 0;
+  else if (view == "side") o.yawDeg = 90, o.pitchDeg = 0;
+  else if (view == "top") o.yawDeg = 0, o.pitchDeg = 90;
+  else {
+    char* end = nullptr;
+    o.yawDeg = std::strtod(view.c_str(), &end);
+    if (end == view.c_str() || *end != ',') throw UsageError("--view", "expected front, side, top or YAW,PITCH, got '" + view + "'");
+    const char* p = end + 1;
+    o.pitchDeg = std::strtod(p, &end);
+    if (end == p || *end != '\0' || !std::isfinite(o.yawDeg) || !(o.pitchDeg >= -90 && o.pitchDeg <= 90))
+      throw UsageError("--view", "expected YAW,PITCH in degrees with PITCH in [-90, 90], got '" + view + "'");
+  }
+  o.lightRotationDeg = cl.getDouble("rotate-light", 0.0, -36000.0, 36000.0);
+  go.normalised = !cl.has("unnormalised");
+  ToneMap tm;
+  tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
+  const std::string lobeText = cl.get("lobe", "phong:16");
+  const Mesh mesh = loadMesh(input);
+  GlossyMatrices g;
+  CpcaResult c;
+  const bool cpca = cl.has("cpca");
+  if (cpca) {
+    c = readCpcaNpz(cl.get("cpca"), &g.orderOut, &g.orderIn, &g.channels);
+    g.vertexCount = c.vertexCount;
+  } else {
+    g = readGlossyNpy(cl.get("matrices"), mesh.vertexCount());
+  }
+  const GlossyLobe lobe = parseGlossyLobe(lobeText, g.orderOut);
+  const ShCoeffs radiance = readShJson(envPath);
+  if (radiance.quantity != ShQuantity::Radiance)
+    throw InputError(envPath, "the mesh preview needs radiance coefficients (this file holds " +
+                                  std::string(toString(radiance.quantity)) + ")");
+  EnvMap background;
+  if (cl.has("background")) {
+    EnvLoadOptions lo;
+    lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
+    background = loadEnvironment(cl.get("background"), lo);
+    o.background = &background;
+  }
+  Runtime rt(cl.device());
+  const MeshPreviewResult r = renderGlossyPreview(rt, mesh, g, cpca ? &c : nullptr, radiance, lobe, go);
+  char what[512];
+  std::snprintf(what, sizeof what,
+                "prtbake glossy preview: L = albedo * sum_lm g_l (M l)_lm Y_lm(R)%s, lobe %s, transfer %dx%d%s; camera "
+                "%s; lighting rotated by %g deg about +Y",
+                go.normalised ? " / D (horizon-normalised)" : "", lobe.name.c_str(), g.orderOut * g.orderOut,
+                g.orderIn * g.orderIn, cpca ? " (CPCA)" : "", r.camera.c_str(), o.lightRotationDeg);
+  writePreviewPng(output, r.image, tm,
+                  {{"Description", what}, {"Source", input}, {"Transfer", cl.get(cpca ? "cpca" : "matrices")},
+                   {"Environment", envPath}});
+  char timing[160];
+  std::snprintf(timing, sizeof timing, " (%zu triangles, BVH %.3f s, kernel %.3f s)", r.triangles, r.bvhSeconds,
+                r.kernelSeconds);
+  status(cl, "wrote " + output + timing);
+  return 0;
+}
+
+namespace {
+
+int runCpca(const CommandLine& cl) {
+  const std::string input = cl.positional.at(0), out = cl.get("output");
+  if (out.empty()) throw UsageError("cpca", "missing -o OUT.npz");
+  CpcaOptions co;
+  if (cl.has("clusters") != cl.has("vectors")) throw UsageError("cpca", "give both --clusters K and --vectors P");
+  if (cl.has("clusters") && cl.has("target-error"))
+    throw UsageError("--target-error", "give --clusters/--vectors or --target-error, not both");
+  if (cl.has("clusters")) {
+    co.clusters = int(cl.getInt("clusters", 16, 1, 65536));
+    co.vectors = int(cl.getInt("vectors", 8, 0, 64));
+  } else {
+    co.targetError = cl.getDouble("target-error", 0.02, 1e-6, 0.999);
+  }
+  co.iterations = int(cl.getInt("iterations", 10, 1, 1000));
+  co.threads = int(cl.getInt("threads", 0, 0, 1024));
+  // float32 bakes are mapped in place (no copy); float16 ones are read and widened.
+  std::unique_ptr<GlossyNpyMap> map;
+  GlossyMatrices g;
+  const float* values = nullptr;
+  try {
+    map = std::make_unique<GlossyNpyMap>(input);
+    g = map->info();
+    values = map->data();
+  } catch (const InputError&) {
+    g = readGlossyNpy(input);  // a float16 file, or the reader's own error
+    values = g.values.data();
+  }
+  const size_t dim = size_t(g.channels) * g.orderOut * g.orderOut * g.orderIn * g.orderIn;
+  status(cl, "cpca: " + input + ": " + std::to_string(g.vertexCount) + " matrices of " + std::to_string(dim) + " values");
+  const CpcaResult c = cpcaCompress(values, g.vertexCount, dim, co);
+  nlohmann::json side = {{"tool", {{"name", "prtbake"}, {"version", version()}}},
+                         {"product", "glossy_transfer_cpca"},
+                         {"input", {{"path", input}}},
+                         {"order_out", g.orderOut},
+                         {"order_in", g.orderIn},
+                         {"channels", g.channels},
+                         {"cpca", nlohmann::json::parse(cpcaSidecarJson(c, out))}};
+  AtomicFile npz(out), json(stem(out) + ".json");
+  npz.write(cpcaNpzBytes(c, g.orderOut, g.orderIn, g.channels));
+  json.write(side.dump(2) + "\n");
+  npz.commit();
+  json.commit();
+  status(cl, cpcaLine(c));
+  return 0;
+}
+
+PRTBAKE_COMMAND(Command{
+    "cpca", "compress glossy transfer matrices with clustered PCA",
+    "prtbake cpca MATRICES.npy -o OUT.npz (--clusters K --vectors P | --target-error E) [--iterations N]\n"
+    "       [--threads N]\n"
+    "Clusters the vertices' matrices (Sloan et al. 2003): K clusters of P PCA vectors each; per vertex a\n"
+    "cluster id and P weights. --target-error E picks the smallest (K, P) of a fixed ladder whose total\n"
+    "relative RMS error is at most E. Writes OUT.npz (means, basis, clusters, weights, error, orders) and\n"
+    "OUT.json (K, P, errors, compression). See docs/glossy.md.",
+    {{"output", true, "the .npz output (-o); the JSON sidecar goes beside it"},
+     {"clusters", true, "K clusters"},
+     {"vectors", true, "P PCA vectors per cluster"},
+     {"target-error", true, "the largest total relative RMS error (default 0.02)"},
+     {"iterations", true, "the most clustering iterations (default 10)"},
+     {"threads", true, "host threads (default: all cores)"}},
+    1, 1, runCpca});
+
+}  // namespace
+}  // namespace prtbake::cli
