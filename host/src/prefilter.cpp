@@ -179,7 +179,7 @@ class CutRunner {
     kernel_ = rt.kernel("prefilter.cl", "prefilter_cut",
                         "-DPF_LOBE=" + std::to_string(int(lobe)) + " -DVW=" + std::to_string(vw_));
     const cl_mem_flags host = rt.info().type == "cpu" ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;
-    auto buf = [&](const std::vector<float>& v) {
+    auto buf = [&](const detail::RawVector<float>& v) {
       return cl::Buffer(rt.context(), CL_MEM_READ_ONLY | host, v.size() * sizeof(float), const_cast<float*>(v.data()));
     };
     flux_ = buf(tree.flux), dirL_ = buf(tree.dirL), dirG_ = buf(tree.dirG);

@@ -30,7 +30,11 @@
 // finest bins, or where a bin is far from the tile for its size, the bin is listed once as
 // a block of its descendants at one depth (the finest, or the depth the tile's nearest
 // texel needs), which the kernel walks as rows of the bin array.
+#include <sys/mman.h>
+
 #include <algorithm>
+#include <cstdlib>
+#include <new>
 #include <atomic>
 #include <cmath>
 #include <functional>
@@ -136,14 +140,139 @@ double sourceTexelAngle(const EnvMap& env) {
   return env.layout == EnvLayout::Cube ? 2.0 / env.width : 2.0 * kPi / env.width;
 }
 
+// --- large blocks ---
+
+void* allocateLarge(size_t bytes) {
+  constexpr size_t kHuge = size_t(2) << 20, kLarge = size_t(4) << 20;
+  if (bytes < kLarge) {
+    void* p = std::malloc(bytes ? bytes : 1);
+    if (!p) throw std::bad_alloc();
+    return p;
+  }
+  const size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+  void* p = std::aligned_alloc(kHuge, rounded);
+  if (!p) throw std::bad_alloc();
+  ::madvise(p, rounded, MADV_HUGEPAGE);  // a hint: ignored where huge pages are off
+  return p;
+}
+
+void freeLarge(void* p, size_t) { std::free(p); }
+
 // --- the bin tree ---
 
 namespace {
-void buildGeometry(BinTree& t);
+
+// Centre direction (in face coordinates: dir = a·U + b·V + c·N) and angular radius of
+// the cell [u0,u1]×[v0,v1] of a face.
+struct Cell {
+  double a, b, c, radius;
+};
+Cell cellOf(double u0, double u1, double v0, double v1) {
+  const double uc = 0.5 * (u0 + u1), vc = 0.5 * (v0 + v1), l = std::sqrt(uc * uc + vc * vc + 1.0);
+  Cell cell{uc / l, vc / l, 1.0 / l, 0.0};
+  for (const double u : {u0, u1})
+    for (const double v : {v0, v1}) {
+      const double lc = std::sqrt(u * u + v * v + 1.0);
+      const double dot = (u * cell.a + v * cell.b + cell.c) / lc;
+      cell.radius = std::max(cell.radius, std::acos(std::clamp(dot, -1.0, 1.0)));
+    }
+  return cell;
+}
+
+void toWorld(int face, const Cell& cell, double d[3]) {
+  const CubeFaceBasis& b = bases()[size_t(face)];
+  for (int k = 0; k < 3; ++k) d[k] = cell.a * b.axisU[size_t(k)] + cell.b * b.axisV[size_t(k)] + cell.c * b.axisN[size_t(k)];
+}
+
 }  // namespace
 
+
+
+namespace {
+
+// Morton code of (row, col) < 1024: bits interleaved, col in the even bits.
+uint32_t spread10(uint32_t x) {
+  x &= 0x3ff;
+  x = (x | (x << 8)) & 0x00ff00ffu;
+  x = (x | (x << 4)) & 0x0f0f0f0fu;
+  x = (x | (x << 2)) & 0x33333333u;
+  x = (x | (x << 1)) & 0x55555555u;
+  return x;
+}
+uint32_t compact10(uint32_t x) {
+  x &= 0x55555555u;
+  x = (x | (x >> 1)) & 0x33333333u;
+  x = (x | (x >> 2)) & 0x0f0f0f0fu;
+  x = (x | (x >> 4)) & 0x00ff00ffu;
+  x = (x | (x >> 8)) & 0x0000ffffu;
+  return x;
+}
+
+// Calls f(t, direction, solid angle) for source texel t (yaw applied).
+class TexelStream {
+ public:
+  explicit TexelStream(const EnvMap& env) : env_(env) {
+    const double yaw = env.yawDegrees * kPi / 180.0;
+    cy_ = std::cos(yaw), sy_ = std::sin(yaw);
+    if (env.layout == EnvLayout::LatLong) {
+      const int w = env.width, h = env.height;
+      for (int c = 0; c < w; ++c) {
+        const double lambda = -2.0 * kPi * ((c + 0.5) / w - 0.5);
+        colSin_.push_back(std::sin(lambda)), colCos_.push_back(std::cos(lambda));
+      }
+      for (int r = 0; r < h; ++r) {
+        const double phi = kPi * (0.5 - (r + 0.5) / h);
+        const double top = kPi * (0.5 - double(r) / h), bottom = kPi * (0.5 - double(r + 1) / h);
+        rowSin_.push_back(std::sin(phi)), rowCos_.push_back(std::cos(phi));
+        rowOmega_.push_back((2.0 * kPi / w) * (std::sin(top) - std::sin(bottom)));
+      }
+    } else {
+      // Exact texel solid angles of one face from the corner function (envmap.h).
+      const int n = env.width;
+      std::vector<double> corner(size_t(n + 1) * size_t(n + 1));
+      for (int r = 0; r <= n; ++r)
+        for (int c = 0; c <= n; ++c) {
+          const double u = 2.0 * c / n - 1.0, v = 2.0 * r / n - 1.0;
+          corner[size_t(r) * size_t(n + 1) + size_t(c)] = std::atan2(u * v, std::sqrt(u * u + v * v + 1.0));
+        }
+      auto f = [&](int r, int c) { return corner[size_t(r) * size_t(n + 1) + size_t(c)]; };
+      omega_.resize(size_t(n) * size_t(n));
+      for (int r = 0; r < n; ++r)
+        for (int c = 0; c < n; ++c)
+          omega_[size_t(r) * size_t(n) + size_t(c)] = std::abs(f(r, c) - f(r + 1, c) - f(r, c + 1) + f(r + 1, c + 1));
+    }
+  }
+  void texel(size_t t, double d[3], double* omega) const {
+    double m[3];
+    if (env_.layout == EnvLayout::LatLong) {
+      const size_t w = size_t(env_.width), r = t / w, c = t % w;
+      m[0] = colSin_[c] * rowCos_[r], m[1] = rowSin_[r], m[2] = colCos_[c] * rowCos_[r];
+      *omega = rowOmega_[r];
+    } else {
+      const size_t n = size_t(env_.width), face = t / (n * n), r = (t / n) % n, c = t % n;
+      const CubeFaceBasis& b = env_.faces[face];
+      const double u = 2.0 * (double(c) + 0.5) / double(n) - 1.0, v = 2.0 * (double(r) + 0.5) / double(n) - 1.0;
+      for (int k = 0; k < 3; ++k) m[k] = u * b.axisU[size_t(k)] + v * b.axisV[size_t(k)] + b.axisN[size_t(k)];
+      normalize3(m);
+      *omega = omega_[r * n + c];
+    }
+    d[0] = cy_ * m[0] + sy_ * m[2], d[1] = m[1], d[2] = -sy_ * m[0] + cy_ * m[2];
+  }
+
+ private:
+  const EnvMap& env_;
+  double cy_ = 1, sy_ = 0;
+  std::vector<double> colSin_, colCos_, rowSin_, rowCos_, rowOmega_, omega_;
+};
+
+}  // namespace
+
+// The texels are counted into their finest bins by a key face·M0² + Morton(row, col), sorted
+// by that key (counting sort), and summed bin by bin in key order: the four children of every
+// node then come one after the other, so each level's sums are reduced into the next with a
+// stack of one partial sum per level instead of a double array per level.
 BinTree buildBinTree(const EnvMap& env, int m0) {
-  PRTBAKE_CHECK(m0 >= 1 && (m0 & (m0 - 1)) == 0, "bin face size must be a power of two");
+  PRTBAKE_CHECK(m0 >= 1 && m0 <= 1024 && (m0 & (m0 - 1)) == 0, "bin face size must be a power of two up to 1024");
   BinTree t;
   t.faceSize0 = m0;
   for (int m = m0; m >= 1; m /= 2) ++t.levels;
@@ -152,103 +281,97 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
     const size_t m = size_t(m0 >> l);
     t.offset[size_t(l) + 1] = t.offset[size_t(l)] + 6 * m * m;
   }
-  t.flux.assign(4 * t.nodes(), 0.0f);
-  t.dirL.assign(4 * t.nodes(), 0.0f);
-  t.dirG.assign(4 * t.nodes(), 0.0f);
-  t.spreadL.assign(t.nodes(), 0.0f);
-  t.spreadG.assign(t.nodes(), 0.0f);
+  t.flux.resize(4 * t.nodes());
+  t.dirL.resize(4 * t.nodes());
+  t.dirG.resize(4 * t.nodes());
+  t.geom.resize(t.nodes());
 
-  // Level 0 in double: F (3), Ω, m_L (3), m_G (3) per bin.
-  constexpr int kAcc = 10;
-  std::vector<double> acc(size_t(kAcc) * 6 * size_t(m0) * size_t(m0), 0.0);
-  const double yaw = env.yawDegrees * kPi / 180.0, cy = std::cos(yaw), sy = std::sin(yaw);
-  auto add = [&](const double dMap[3], double omega, const float* rgb) {
-    const double d[3] = {cy * dMap[0] + sy * dMap[2], dMap[1], -sy * dMap[0] + cy * dMap[2]};
+  const TexelStream stream(env);
+  const size_t count = env.texelCount(), keys = 6 * size_t(m0) * size_t(m0);
+  RawVector<uint32_t> key(count), order(count);
+  std::vector<uint32_t> start(keys + 1, 0);
+  for (size_t i = 0; i < count; ++i) {
+    double d[3], omega, u, v;
     int f;
-    double u, v;
+    stream.texel(i, d, &omega);
     cubeFaceUv(d, &f, &u, &v);
-    const int c = std::clamp(int((u + 1.0) * 0.5 * m0), 0, m0 - 1), r = std::clamp(int((v + 1.0) * 0.5 * m0), 0, m0 - 1);
-    double* a = &acc[size_t(kAcc) * ((size_t(f) * size_t(m0) + size_t(r)) * size_t(m0) + size_t(c))];
-    const double w = (double(rgb[0]) + rgb[1] + rgb[2]) / 3.0 * omega;
-    for (int k = 0; k < 3; ++k) {
-      a[k] += double(rgb[k]) * omega;
-      a[4 + k] += w * d[k];
-      a[7 + k] += omega * d[k];
-    }
-    a[3] += omega;
-  };
-  if (env.layout == EnvLayout::LatLong) {
-    const int w = env.width, h = env.height;
-    std::vector<double> sl(static_cast<size_t>(w)), cl(static_cast<size_t>(w));
-    for (int c = 0; c < w; ++c) {
-      const double lambda = -2.0 * kPi * ((c + 0.5) / w - 0.5);
-      sl[size_t(c)] = std::sin(lambda), cl[size_t(c)] = std::cos(lambda);
-    }
-    for (int r = 0; r < h; ++r) {
-      const double phi = kPi * (0.5 - (r + 0.5) / h), sp = std::sin(phi), cp = std::cos(phi);
-      const double top = kPi * (0.5 - double(r) / h), bottom = kPi * (0.5 - double(r + 1) / h);
-      const double omega = (2.0 * kPi / w) * (std::sin(top) - std::sin(bottom));
-      for (int c = 0; c < w; ++c) {
-        const double d[3] = {sl[size_t(c)] * cp, sp, cl[size_t(c)] * cp};
-        add(d, omega, &env.rgb[3 * (size_t(r) * size_t(w) + size_t(c))]);
-      }
-    }
-  } else {
-    const int n = env.width;
-    // Exact solid angles from the corner function f(u, v) (envmap.h), one row of corners at a time.
-    std::vector<double> corner(2 * size_t(n + 1));
-    auto f = [](double a, double b) { return std::atan2(a * b, std::sqrt(a * a + b * b + 1.0)); };
-    for (int face = 0; face < 6; ++face) {
-      const CubeFaceBasis& b = env.faces[size_t(face)];
-      for (int c = 0; c <= n; ++c) corner[size_t(c)] = f(2.0 * c / n - 1.0, -1.0);
-      for (int r = 0; r < n; ++r) {
-        double* prev = &corner[size_t(r % 2) * size_t(n + 1)];
-        double* next = &corner[size_t((r + 1) % 2) * size_t(n + 1)];
-        const double v1 = 2.0 * (r + 1) / n - 1.0, v = 2.0 * (r + 0.5) / n - 1.0;
-        for (int c = 0; c <= n; ++c) next[c] = f(2.0 * c / n - 1.0, v1);
-        for (int c = 0; c < n; ++c) {
-          const double omega = prev[c] - next[c] - prev[c + 1] + next[c + 1];
-          const double u = 2.0 * (c + 0.5) / n - 1.0;
-          double d[3];
-          for (int k = 0; k < 3; ++k) d[k] = u * b.axisU[size_t(k)] + v * b.axisV[size_t(k)] + b.axisN[size_t(k)];
-          normalize3(d);
-          add(d, std::abs(omega), &env.rgb[3 * ((size_t(face) * size_t(n) + size_t(r)) * size_t(n) + size_t(c))]);
-        }
-      }
-    }
+    const uint32_t c = uint32_t(std::clamp(int((u + 1.0) * 0.5 * m0), 0, m0 - 1));
+    const uint32_t r = uint32_t(std::clamp(int((v + 1.0) * 0.5 * m0), 0, m0 - 1));
+    key[i] = uint32_t(f) * uint32_t(m0) * uint32_t(m0) + (spread10(r) << 1 | spread10(c));
+    ++start[key[i] + 1];
+  }
+  for (size_t k = 0; k < keys; ++k) start[k + 1] += start[k];
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t i = 0; i < count; ++i) order[fill[key[i]]++] = uint32_t(i);
   }
 
-  // Store a level from its double sums, then sum it into the next.
+  // Per-level cells (centre and radius in face coordinates), the same on every face.
+  std::vector<std::vector<Cell>> cells(static_cast<size_t>(t.levels));
   for (int l = 0; l < t.levels; ++l) {
-    const size_t m = size_t(m0 >> l), base = t.offset[size_t(l)];
-    for (size_t i = 0; i < 6 * m * m; ++i) {
-      const double* a = &acc[size_t(kAcc) * i];
-      float* fl = &t.flux[4 * (base + i)];
-      for (int k = 0; k < 4; ++k) fl[k] = float(a[k]);
-      double dl[3] = {a[4], a[5], a[6]}, dg[3] = {a[7], a[8], a[9]};
-      const double wl = (a[0] + a[1] + a[2]) / 3.0;
-      const double lenL = std::sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
-      const double lenG = std::sqrt(dg[0] * dg[0] + dg[1] * dg[1] + dg[2] * dg[2]);
-      t.spreadG[base + i] = a[3] > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenG / a[3]))) : 0.0f;
-      t.spreadL[base + i] = wl > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenL / wl))) : t.spreadG[base + i];
-      if (!(dl[0] != 0 || dl[1] != 0 || dl[2] != 0)) std::copy(dg, dg + 3, dl);
-      normalize3(dl);
-      normalize3(dg);
-      for (int k = 0; k < 3; ++k) t.dirL[4 * (base + i) + size_t(k)] = float(dl[k]), t.dirG[4 * (base + i) + size_t(k)] = float(dg[k]);
-    }
-    if (l + 1 == t.levels) break;
-    const size_t mc = m / 2;
-    std::vector<double> up(size_t(kAcc) * 6 * mc * mc, 0.0);
-    for (size_t face = 0; face < 6; ++face)
-      for (size_t r = 0; r < m; ++r)
-        for (size_t c = 0; c < m; ++c) {
-          const double* a = &acc[size_t(kAcc) * ((face * m + r) * m + c)];
-          double* p = &up[size_t(kAcc) * ((face * mc + r / 2) * mc + c / 2)];
-          for (int k = 0; k < kAcc; ++k) p[k] += a[k];
-        }
-    acc.swap(up);
+    const int m = m0 >> l;
+    cells[size_t(l)].resize(size_t(m) * size_t(m));
+    for (int r = 0; r < m; ++r)
+      for (int c = 0; c < m; ++c)
+        cells[size_t(l)][size_t(r) * size_t(m) + size_t(c)] =
+            cellOf(2.0 * c / m - 1.0, 2.0 * (c + 1) / m - 1.0, 2.0 * r / m - 1.0, 2.0 * (r + 1) / m - 1.0);
   }
-  buildGeometry(t);
+  // Sums: F (3), Ω, m_L (3), m_G (3).
+  using Sums = std::array<double, 10>;
+  auto emit = [&](int level, uint32_t faceKey, const Sums& a) {
+    const int m = m0 >> level;
+    const uint32_t perFace = uint32_t(m) * uint32_t(m), face = faceKey / perFace, morton = faceKey % perFace;
+    const uint32_t r = compact10(morton >> 1), c = compact10(morton);
+    const size_t i = t.offset[size_t(level)] + (size_t(face) * size_t(m) + r) * size_t(m) + c;
+    double dl[3] = {a[4], a[5], a[6]}, dg[3] = {a[7], a[8], a[9]};
+    const double wl = (a[0] + a[1] + a[2]) / 3.0;
+    const double lenL = std::sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
+    const double lenG = std::sqrt(dg[0] * dg[0] + dg[1] * dg[1] + dg[2] * dg[2]);
+    const float spreadG = a[3] > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenG / a[3]))) : 0.0f;
+    const float spreadL = wl > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenL / wl))) : spreadG;
+    const Cell& cell = cells[size_t(level)][size_t(r) * size_t(m) + c];
+    double centre[3];
+    toWorld(int(face), cell, centre);
+    if (!(lenL > 0)) std::copy(dg, dg + 3, dl);
+    if (!(lenG > 0)) std::copy(centre, centre + 3, dg), std::copy(centre, centre + 3, dl);
+    normalize3(dl);
+    normalize3(dg);
+    for (int k = 0; k < 4; ++k) t.flux[4 * i + size_t(k)] = float(a[size_t(k)]);
+    for (int k = 0; k < 3; ++k) t.dirL[4 * i + size_t(k)] = float(dl[k]), t.dirG[4 * i + size_t(k)] = float(dg[k]);
+    t.dirL[4 * i + 3] = t.dirG[4 * i + 3] = 0.0f;
+    t.geom[i] = {float(centre[0]), float(centre[1]), float(centre[2]), float(cell.radius),
+                 float(wl), float(a[3]), spreadL, spreadG};
+  };
+  std::vector<Sums> partial(static_cast<size_t>(t.levels), Sums{});
+  std::vector<int> children(static_cast<size_t>(t.levels), 0);
+  for (uint32_t k = 0; k < keys; ++k) {
+    Sums a{};
+    for (uint32_t o = start[k]; o < start[k + 1]; ++o) {
+      double d[3], omega;
+      stream.texel(order[o], d, &omega);
+      const float* rgb = &env.rgb[3 * size_t(order[o])];
+      const double w = (double(rgb[0]) + rgb[1] + rgb[2]) / 3.0 * omega;
+      for (int j = 0; j < 3; ++j) {
+        a[size_t(j)] += double(rgb[j]) * omega;
+        a[size_t(4 + j)] += w * d[j];
+        a[size_t(7 + j)] += omega * d[j];
+      }
+      a[3] += omega;
+    }
+    // Emit the bin, then every ancestor whose four children are now done.
+    uint32_t code = k;
+    for (int l = 0; l < t.levels; ++l) {
+      emit(l, code, a);
+      if (l + 1 == t.levels) break;
+      Sums& p = partial[size_t(l) + 1];
+      for (size_t j = 0; j < a.size(); ++j) p[j] += a[j];
+      if (++children[size_t(l) + 1] < 4) break;
+      a = p;
+      p = Sums{};
+      children[size_t(l) + 1] = 0;
+      code >>= 2;
+    }
+  }
   return t;
 }
 
@@ -342,28 +465,6 @@ double LobeScale::weight(double th) const {
 
 namespace {
 
-// Centre direction (in face coordinates: dir = a·U + b·V + c·N) and angular radius of
-// the cell [u0,u1]×[v0,v1] of a face.
-struct Cell {
-  double a, b, c, radius;
-};
-Cell cellOf(double u0, double u1, double v0, double v1) {
-  const double uc = 0.5 * (u0 + u1), vc = 0.5 * (v0 + v1), l = std::sqrt(uc * uc + vc * vc + 1.0);
-  Cell cell{uc / l, vc / l, 1.0 / l, 0.0};
-  for (const double u : {u0, u1})
-    for (const double v : {v0, v1}) {
-      const double lc = std::sqrt(u * u + v * v + 1.0);
-      const double dot = (u * cell.a + v * cell.b + cell.c) / lc;
-      cell.radius = std::max(cell.radius, std::acos(std::clamp(dot, -1.0, 1.0)));
-    }
-  return cell;
-}
-
-void toWorld(int face, const Cell& cell, double d[3]) {
-  const CubeFaceBasis& b = bases()[size_t(face)];
-  for (int k = 0; k < 3; ++k) d[k] = cell.a * b.axisU[size_t(k)] + cell.b * b.axisV[size_t(k)] + cell.c * b.axisN[size_t(k)];
-}
-
 // A tile's texel-centre extent: centre direction and angular radius.
 struct TileGeom {
   double d[3];
@@ -390,25 +491,6 @@ std::vector<TileGeom> tileGeometry(const TileTree& tt, int face) {
       }
   }
   return g;
-}
-
-void buildGeometry(BinTree& t) {
-  t.geom.resize(t.nodes());
-  for (int l = 0; l < t.levels; ++l) {
-    const int m = t.faceSize0 >> l;
-    for (int r = 0; r < m; ++r)
-      for (int c = 0; c < m; ++c) {
-        const Cell cell = cellOf(2.0 * c / m - 1.0, 2.0 * (c + 1) / m - 1.0, 2.0 * r / m - 1.0, 2.0 * (r + 1) / m - 1.0);
-        for (int f = 0; f < 6; ++f) {
-          const size_t i = t.offset[size_t(l)] + (size_t(f) * size_t(m) + size_t(r)) * size_t(m) + size_t(c);
-          double d[3];
-          toWorld(f, cell, d);
-          const float* fl = &t.flux[4 * i];
-          t.geom[i] = {float(d[0]), float(d[1]), float(d[2]), float(cell.radius),
-                       (fl[0] + fl[1] + fl[2]) / 3.0f, fl[3], t.spreadL[i], t.spreadG[i]};
-        }
-      }
-  }
 }
 
 struct BinRef {
@@ -702,7 +784,7 @@ std::vector<double> evaluateCutsReference(const BinTree& tree, const TileCuts& c
           std::vector<size_t> nodes;
           for (uint32_t i = cuts.start[id]; i < cuts.start[id + 1]; ++i) forEachBinEntry(tree, cuts.bins[i], [&](size_t b) { nodes.push_back(b); });
           for (const size_t b : nodes) {
-            auto weight = [&](const std::vector<float>& dir) {
+            auto weight = [&](const RawVector<float>& dir) {
               double e = 0;
               for (int j = 0; j < 3; ++j) {
                 const double x = d[j] - double(dir[4 * b + size_t(j)]);
