@@ -154,25 +154,36 @@ std::vector<float> resampleEnvironment(const EnvMap& env, int n) {
 std::vector<double> prefilterBruteForce(const EnvMap& env, PrefilterLobe lobe, double alpha,
                                         const std::vector<double>& dirs) {
   const size_t count = env.texelCount();
-  std::vector<double> dx(count), dy(count), dz(count), om(count);
+  std::vector<double> dx(count), dy(count), dz(count), om(count), cr(count), cg(count), cb(count);
   for (size_t t = 0; t < count; ++t) {
     double d[3];
     texelDirection(env, t, d, &om[t]);
     dx[t] = d[0], dy[t] = d[1], dz[t] = d[2];
+    cr[t] = env.rgb[3 * t], cg[t] = env.rgb[3 * t + 1], cb[t] = env.rgb[3 * t + 2];
   }
   const size_t n = dirs.size() / 3;
   std::vector<double> out(3 * n);
+  const double a2 = alpha * alpha;
   parallelFor(n, [&](size_t i) {
     const double* r = &dirs[3 * i];
-    double acc[4] = {0, 0, 0, 0};
+    // Four interleaved partial sums per quantity (independent chains), added in a fixed order.
+    double acc[4][4] = {};
     for (size_t t = 0; t < count; ++t) {
       const double mu = r[0] * dx[t] + r[1] * dy[t] + r[2] * dz[t];
-      if (mu <= 0) continue;
-      const double w = prefilterLobeWeight(lobe, alpha, mu) * om[t];
-      const float* c = &env.rgb[3 * t];
-      acc[0] += w * c[0], acc[1] += w * c[1], acc[2] += w * c[2], acc[3] += w;
+      double w;
+      if (lobe == PrefilterLobe::Ggx) {
+        // k = μ (α²/q)², q = e/2 + (1 − e/2) α², e = 1 − μ (prefilterLobeWeight, inlined).
+        const double e = 1.0 - mu, q = 0.5 * e + (1.0 - 0.5 * e) * a2, x = a2 / q;
+        w = (mu > 0 ? mu : 0.0) * x * x * om[t];
+      } else {
+        w = mu > 0 ? prefilterLobeWeight(lobe, alpha, mu) * om[t] : 0.0;
+      }
+      double* a = acc[t & 3];
+      a[0] += w * cr[t], a[1] += w * cg[t], a[2] += w * cb[t], a[3] += w;
     }
-    for (int c = 0; c < 3; ++c) out[3 * i + size_t(c)] = acc[3] > 0 ? acc[c] / acc[3] : 0.0;
+    double s[4];
+    for (int k = 0; k < 4; ++k) s[k] = (acc[0][k] + acc[1][k]) + (acc[2][k] + acc[3][k]);
+    for (int c = 0; c < 3; ++c) out[3 * i + size_t(c)] = s[3] > 0 ? s[c] / s[3] : 0.0;
   });
   return out;
 }

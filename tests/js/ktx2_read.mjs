@@ -5,11 +5,14 @@
 // +Z, −Z; the GL/Vulkan major-axis table; row 0 at t = 0):
 //   +X: sc = −z, tc = −y   −X: sc = z, tc = −y   +Y: sc = x, tc = z
 //   −Y: sc = x, tc = −z    +Z: sc = x, tc = −y   −Z: sc = −x, tc = −y
-// Usage: node ktx2_read.mjs FILE.ktx2
+// With --texels L S it prints instead of the sums every S-th texel (rows and columns ≡ S/2 mod S) of level L
+// as [x, y, z, r, g, b], the direction again from the specification's addressing.
+// Usage: node ktx2_read.mjs FILE.ktx2 [--texels LEVEL STRIDE]
 import { readFileSync } from 'node:fs';
 import { read } from 'ktx-parse';
 
 const file = process.argv[2];
+const texelsAt = process.argv[3] === '--texels' ? [Number(process.argv[4]), Number(process.argv[5])] : null;
 const c = read(new Uint8Array(readFileSync(file)));
 
 function halfToFloat(h) {
@@ -47,6 +50,10 @@ const out = {
 const bpc = c.typeSize;  // bytes per channel: 2 (half) or 4 (float)
 for (let l = 0; l < c.levels.length; ++l) {
   const n = Math.max(1, c.pixelWidth >> l), data = c.levels[l].levelData;
+  if (texelsAt) {  // the texels alone: skip the per-level sums
+    out.levels.push({ size: n, byteLength: data.byteLength, uncompressedByteLength: c.levels[l].uncompressedByteLength });
+    continue;
+  }
   const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
   const faceBytes = data.byteLength / 6;
   const moments = [[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0]];
@@ -68,5 +75,19 @@ for (let l = 0; l < c.levels.length; ++l) {
       }
   out.levels.push({ size: n, byteLength: data.byteLength, uncompressedByteLength: c.levels[l].uncompressedByteLength,
                     min, max, finite, moments });
+}
+if (texelsAt) {
+  const [l, stride] = texelsAt, n = Math.max(1, c.pixelWidth >> l), data = c.levels[l].levelData;
+  const view = new DataView(data.buffer, data.byteOffset, data.byteLength), faceBytes = data.byteLength / 6;
+  out.texels = [];
+  for (let f = 0; f < 6; ++f)
+    for (let row = stride >> 1; row < n; row += stride)
+      for (let col = stride >> 1; col < n; col += stride) {
+        const d = faceDir[f]((2 * (col + 0.5)) / n - 1, (2 * (row + 0.5)) / n - 1), len = Math.hypot(d[0], d[1], d[2]);
+        const at = f * faceBytes + (row * n + col) * 4 * bpc, v = [];
+        for (let k = 0; k < 3; ++k)
+          v.push(bpc === 2 ? halfToFloat(view.getUint16(at + 2 * k, true)) : view.getFloat32(at + 4 * k, true));
+        out.texels.push([d[0] / len, d[1] / len, d[2] / len, ...v]);
+      }
 }
 process.stdout.write(JSON.stringify(out) + '\n');
