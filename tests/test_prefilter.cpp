@@ -420,7 +420,7 @@ TEST_CASE("Seams: a bright spot on a cube edge steps across it exactly as the de
   }
 }
 
-TEST_CASE("Extremes: r = 0 is the resampled source, r = 1, 1×1 levels, base sizes 1 to 100", "[prefilter][kernel]") {
+TEST_CASE("Extremes: r = 0 is the resampled source, r = 1, 1×1 levels, base sizes 1 to 2048", "[prefilter][kernel]") {
   // A cube source at the base size: level 0 is the source texel for texel, bit for bit.
   const EnvMap env = makeCube(32, skyWithSun);
   const PrefilterResult r = prefilterEnvironment(test::runtime(), env, rough(32, {0.0, 1.0}));
@@ -440,6 +440,15 @@ TEST_CASE("Extremes: r = 0 is the resampled source, r = 1, 1×1 levels, base siz
       for (float v : l.rgb) REQUIRE((std::isfinite(v) && v >= 0));
     }
   }
+  // The largest base in the issue, as a resampling (the prefiltered levels of a 1024 chain are
+  // run by bench/bench_prefilter.cpp): 6 × 2048² texels, each the source magnified bilinearly.
+  const PrefilterResult big = prefilterEnvironment(test::runtime(), env, rough(2048, {0.0}));
+  REQUIRE(big.levels[0].rgb.size() == 18 * size_t(2048) * 2048);
+  double d[3];
+  cubeTexelCenter(2048, 4, 1024, 1024, d);
+  const float* centre = &big.levels[0].rgb[3 * ((size_t(4) * 2048 + 1024) * 2048 + 1024)];
+  const size_t src = cubeTexelIndex(32, d);
+  CHECK(centre[0] == Approx(env.rgb[3 * src]).epsilon(0.05));
 }
 
 TEST_CASE("Extremes: a 1e6 sun among 1e-3 texels gives no NaN and no negative value", "[prefilter][kernel]") {

@@ -35,12 +35,20 @@ void parallelFor(size_t count, Body&& body) {
   for (auto& t : pool) t.join();
 }
 
-// The map's own direction of world direction w: yaw undone (a map direction d is seen at Ry(yaw)·d).
-void mapDirection(const EnvMap& env, const double w[3], double d[3]) {
-  const double yaw = env.yawDegrees * kPi / 180.0, c = std::cos(yaw), s = std::sin(yaw);
-  d[0] = c * w[0] - s * w[2];
+// The map's own direction of world direction w: yaw undone (a map direction d is seen at
+// Ry(yaw)·d); cs = (cos yaw, sin yaw).
+void mapDirection(const double cs[2], const double w[3], double d[3]) {
+  d[0] = cs[0] * w[0] - cs[1] * w[2];
   d[1] = w[1];
-  d[2] = s * w[0] + c * w[2];
+  d[2] = cs[1] * w[0] + cs[0] * w[2];
+}
+
+// The solid angle of the source texel seen in map direction d.
+double sourceTexelSr(const EnvMap& env, const double d[3]) {
+  if (env.layout == EnvLayout::LatLong)
+    return (2 * kPi / env.width) * (kPi / env.height) * std::max(std::sqrt(std::max(0.0, 1.0 - d[1] * d[1])), 0.5 / env.height);
+  const double m = std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});  // 1/|(u, v, 1)| for unit d
+  return (4.0 / (double(env.width) * env.width)) * m * m * m;
 }
 
 // Cube source: the face whose axis is nearest `d` (any face bases), and its u, v.
@@ -74,9 +82,8 @@ const float* cubeTap(const EnvMap& env, int face, int ix, int iy) {
   return &env.rgb[3 * ((size_t(face) * size_t(n) + size_t(iy)) * size_t(n) + size_t(ix))];
 }
 
-// Bilinear radiance of the source at map direction d (unit), and the solid angle of the
-// source texel there.
-void bilinear(const EnvMap& env, const double d[3], double rgb[3], double* texelSr) {
+// Bilinear radiance of the source at map direction d (unit).
+void bilinear(const EnvMap& env, const double d[3], double rgb[3]) {
   double fx, fy;
   const float* t[4];
   if (env.layout == EnvLayout::LatLong) {
@@ -92,7 +99,6 @@ void bilinear(const EnvMap& env, const double d[3], double rgb[3], double* texel
     t[1] = &env.rgb[3 * (size_t(iy0) * size_t(w) + size_t(ix1))];
     t[2] = &env.rgb[3 * (size_t(iy1) * size_t(w) + size_t(ix0))];
     t[3] = &env.rgb[3 * (size_t(iy1) * size_t(w) + size_t(ix1))];
-    *texelSr = (2 * kPi / w) * (kPi / h) * std::max(std::cos(phi), 0.5 / h);
   } else {
     const int n = env.width;
     double u, v;
@@ -105,8 +111,6 @@ void bilinear(const EnvMap& env, const double d[3], double rgb[3], double* texel
     t[1] = cubeTap(env, face, int(x0) + 1, int(y0));
     t[2] = cubeTap(env, face, int(x0), int(y0) + 1);
     t[3] = cubeTap(env, face, int(x0) + 1, int(y0) + 1);
-    const double r2 = u * u + v * v + 1.0;
-    *texelSr = (4.0 / (double(n) * n)) / (r2 * std::sqrt(r2));
   }
   for (int c = 0; c < 3; ++c)
     rgb[c] = (1 - fy) * ((1 - fx) * t[0][c] + fx * t[1][c]) + fy * ((1 - fx) * t[2][c] + fx * t[3][c]);
@@ -118,6 +122,7 @@ std::vector<float> resampleEnvironment(const EnvMap& env, int n) {
   if (n < 1) throw UsageError("--size", "must be at least 1");
   std::vector<float> out(size_t(6) * size_t(n) * size_t(n) * 3);
   const auto bases = standardCubeBases();
+  const double yaw = env.yawDegrees * kPi / 180.0, cs[2] = {std::cos(yaw), std::sin(yaw)};
   parallelFor(size_t(6) * size_t(n), [&](size_t fr) {
     const int face = int(fr / size_t(n)), row = int(fr % size_t(n));
     const auto& b = bases[size_t(face)];
@@ -125,13 +130,18 @@ std::vector<float> resampleEnvironment(const EnvMap& env, int n) {
       // The texel's solid angle against the source's at its centre sets the subsamples.
       const double uc = 2.0 * (col + 0.5) / n - 1.0, vc = 2.0 * (row + 0.5) / n - 1.0;
       const double r2 = uc * uc + vc * vc + 1.0, outSr = (4.0 / (double(n) * n)) / (r2 * std::sqrt(r2));
-      double w[3], d[3], rgb[3], srcSr;
+      double w[3], d[3], rgb[3];
       for (int k = 0; k < 3; ++k) w[k] = uc * b.axisU[size_t(k)] + vc * b.axisV[size_t(k)] + b.axisN[size_t(k)];
       const double l = std::sqrt(r2);
       for (double& x : w) x /= l;
-      mapDirection(env, w, d);
-      bilinear(env, d, rgb, &srcSr);
-      const int s = std::clamp(int(std::ceil(std::sqrt(outSr / srcSr) - 1e-9)), 1, kMaxSupersample);
+      mapDirection(cs, w, d);
+      const int s = std::clamp(int(std::ceil(std::sqrt(outSr / sourceTexelSr(env, d)) - 1e-9)), 1, kMaxSupersample);
+      float* o = &out[3 * ((size_t(face) * size_t(n) + size_t(row)) * size_t(n) + size_t(col))];
+      if (s == 1) {  // magnifying: the bilinear value at the centre
+        bilinear(env, d, rgb);
+        for (int k = 0; k < 3; ++k) o[k] = float(rgb[k]);
+        continue;
+      }
       double acc[3] = {0, 0, 0}, weight = 0;
       for (int j = 0; j < s; ++j)
         for (int i = 0; i < s; ++i) {
@@ -139,12 +149,11 @@ std::vector<float> resampleEnvironment(const EnvMap& env, int n) {
           const double q2 = u * u + v * v + 1.0, dw = 1.0 / (q2 * std::sqrt(q2));  // solid angle density
           const double ql = std::sqrt(q2);
           for (int k = 0; k < 3; ++k) w[k] = (u * b.axisU[size_t(k)] + v * b.axisV[size_t(k)] + b.axisN[size_t(k)]) / ql;
-          mapDirection(env, w, d);
-          bilinear(env, d, rgb, &srcSr);
+          mapDirection(cs, w, d);
+          bilinear(env, d, rgb);
           for (int k = 0; k < 3; ++k) acc[k] += dw * rgb[k];
           weight += dw;
         }
-      float* o = &out[3 * ((size_t(face) * size_t(n) + size_t(row)) * size_t(n) + size_t(col))];
       for (int k = 0; k < 3; ++k) o[k] = float(acc[k] / weight);
     }
   });
