@@ -117,6 +117,8 @@ void validatePrefilterOptions(const PrefilterOptions& o) {
   if (!(o.tolerance >= 1e-4 && o.tolerance <= 0.1)) throw UsageError("--tolerance", "must lie in [1e-4, 0.1]");
   if (o.samples < 1 || o.samples > kPrefilterMaxSamples)
     throw UsageError("--samples", std::to_string(o.samples) + " is out of range [1, " + std::to_string(kPrefilterMaxSamples) + "]");
+  if (o.vectorWidth != 0 && o.vectorWidth != 1 && o.vectorWidth != 8 && o.vectorWidth != 16)
+    throw UsageError("vector width", "must be 1, 8 or 16");
   if (o.method == PrefilterMethod::Sampled && o.lobe != PrefilterLobe::Ggx)
     throw UsageError("--method", "the sampled method exists to compare with the anchors' GGX filtering; use --lobe ggx");
   // The chain (RGB float, plus its half or float RGBA copy for writing) must fit the limit.
@@ -173,9 +175,8 @@ const std::vector<float>& basesTable() {
 // The device side of the cut method: the tree's buffers and one kernel per lobe.
 class CutRunner {
  public:
-  CutRunner(Runtime& rt, const detail::BinTree& tree, PrefilterLobe lobe) : rt_(rt), tree_(tree) {
-    const bool gpu = rt.info().type == "gpu";
-    vw_ = gpu ? 1 : 16;
+  CutRunner(Runtime& rt, const detail::BinTree& tree, PrefilterLobe lobe, int vectorWidth) : rt_(rt), tree_(tree) {
+    vw_ = vectorWidth ? vectorWidth : rt.info().type == "gpu" ? 1 : 16;
     kernel_ = rt.kernel("prefilter.cl", "prefilter_cut",
                         "-DPF_LOBE=" + std::to_string(int(lobe)) + " -DVW=" + std::to_string(vw_));
     const cl_mem_flags host = rt.info().type == "cpu" ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;
@@ -342,7 +343,7 @@ PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const Prefi
   // bin at a time (a nearest-texel lookup that jumps at bin edges): they are widened to it.
   result.alphaFloor = 0.5 * std::max(detail::sourceTexelAngle(env), result.binFaceSize ? 2.0 / result.binFaceSize : 0.0);
   std::unique_ptr<CutRunner> runner;
-  if (!sampled && needTree) runner = std::make_unique<CutRunner>(rt, tree, lobe);
+  if (!sampled && needTree) runner = std::make_unique<CutRunner>(rt, tree, lobe, options.vectorWidth);
 
   for (const PrefilterLevelSpec& spec : specs) {
     PrefilterLevel level;

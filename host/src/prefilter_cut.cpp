@@ -417,21 +417,21 @@ LobeScale::LobeScale(PrefilterLobe lobe, double alpha, double tolerance) : toler
   // Sparse tables: [k][j] = min g (max H) over [j, j + 2^k).
   std::vector<float> rv(gv.size());
   for (size_t j = 0; j < gv.size(); ++j) rv[j] = gv[j] > 0 ? float(double(hv[j]) / gv[j]) : 3e38f;
-  gMin_.push_back(gv);
-  hMax_.push_back(hv);
-  rMax_.push_back(rv);
+  // Sparse table: table_[k][j] = (min g, max H, max H/g) over [j, j + 2^k), one cache line apart.
+  std::vector<std::array<float, 4>> level0(gv.size());
+  for (size_t j = 0; j < gv.size(); ++j) level0[j] = {gv[j], hv[j], rv[j], 0.0f};
+  table_.push_back(std::move(level0));
   for (int k = 1; (1 << k) <= J + 1; ++k) {
-    const size_t half = size_t(1) << (k - 1), len = gMin_.back().size() - half;
-    std::vector<float> a(len), b(len), c(len);
-    for (size_t j = 0; j < len; ++j) {
-      a[j] = std::min(gMin_.back()[j], gMin_.back()[j + half]);
-      b[j] = std::max(hMax_.back()[j], hMax_.back()[j + half]);
-      c[j] = std::max(rMax_.back()[j], rMax_.back()[j + half]);
-    }
-    gMin_.push_back(std::move(a));
-    hMax_.push_back(std::move(b));
-    rMax_.push_back(std::move(c));
+    const std::vector<std::array<float, 4>>& prev = table_.back();
+    const size_t half = size_t(1) << (k - 1), len = prev.size() - half;
+    std::vector<std::array<float, 4>> cur(len);
+    for (size_t j = 0; j < len; ++j)
+      cur[j] = {std::min(prev[j][0], prev[j + half][0]), std::max(prev[j][1], prev[j + half][1]),
+                std::max(prev[j][2], prev[j + half][2]), 0.0f};
+    table_.push_back(std::move(cur));
   }
+  invFine_ = fineStep_ > 0 ? 1.0 / fineStep_ : 0.0;
+  invCoarse_ = coarseStep_ > 0 ? 1.0 / coarseStep_ : 0.0;
 }
 
 int LobeScale::index(double th, bool up) const {
@@ -444,21 +444,22 @@ void LobeScale::range(double lo, double hi, double* gMin, double* hMax, double* 
   const int a = index(lo, false), b = index(std::min(hi, kHalfPi), true);
   const int k = 31 - __builtin_clz(unsigned(b - a + 1));
   const size_t i0 = size_t(a), i1 = size_t(b - (1 << k) + 1), kk = size_t(k);
-  *gMin = hi > kHalfPi ? 0.0 : double(std::min(gMin_[kk][i0], gMin_[kk][i1]));
-  *hMax = double(std::max(hMax_[kk][i0], hMax_[kk][i1]));
-  *rMax = hi > kHalfPi ? 3e38 : double(std::max(rMax_[kk][i0], rMax_[kk][i1]));
+  const std::array<float, 4>&a0 = table_[kk][i0], &a1 = table_[kk][i1];
+  *gMin = hi > kHalfPi ? 0.0 : double(std::min(a0[0], a1[0]));
+  *hMax = double(std::max(a0[1], a1[1]));
+  *rMax = hi > kHalfPi ? 3e38 : double(std::max(a0[2], a1[2]));
 }
 
 double LobeScale::gridPosition(double th) const {
-  if (th < split_) return th / fineStep_;
-  return coarseStep_ > 0 ? fine_ + (std::min(th, kHalfPi) - split_) / coarseStep_ : double(fine_);
+  if (th < split_) return th * invFine_;
+  return fine_ + (std::min(th, kHalfPi) - split_) * invCoarse_;
 }
 
 double LobeScale::weight(double th) const {
   const double x = gridPosition(th);
   const int j = std::min(grid_ - 1, int(x));
   const double f = x - j;
-  return (1 - f) * gMin_[0][size_t(j)] + f * gMin_[0][size_t(j) + 1];
+  return (1 - f) * table_[0][size_t(j)][0] + f * table_[0][size_t(j) + 1][0];
 }
 
 // --- tile cuts ---
@@ -513,40 +514,39 @@ uint32_t blockEntry(const BinRef& b, int depth) {
          uint32_t(b.col);
 }
 
-// The cut criterion of the header comment for one (tile, bin) pair; `range` gives the
-// angles the bin spans from the tile's texels.
+// What the lobe tables say about the angles [lo, hi] a bin spans from a tile.
+struct Range {
+  double lo, hi, gMin, h, rMax;
+};
+
+// The cut criterion of the header comment for one (tile, bin) pair.
 class Criterion {
  public:
   explicit Criterion(const LobeScale& s) : s_(s), slope_(s.horizonSlope()), floor1_(kFirstFloor * s.meanWeight()) {}
 
-  // Over the angles [lo, hi]: smallest g, largest H (the kink across the horizon counted as
-  // a curvature |g'(π/2)|/ρ) and largest H/g.
-  double curvature(double lo, double hi, double radius, double* gMin, double* rMax) const {
-    double h;
-    s_.range(lo, hi, gMin, &h, rMax);
-    if (hi > kHalfPi) h = std::max(h, slope_ / std::max(radius, 1e-12));
-    return h;
+  // Over the angles [lo, hi]: smallest g, largest H and largest H/g (one table query).
+  Range range(double lo, double hi) const {
+    Range r{lo, hi, 0, 0, 0};
+    s_.range(lo, hi, &r.gMin, &r.h, &r.rMax);
+    return r;
+  }
+  // H with the kink across the horizon counted as a curvature |g'(π/2)|/ρ.
+  double curvature(const Range& r, double radius) const {
+    return r.hi > kHalfPi ? std::max(r.h, slope_ / std::max(radius, 1e-12)) : r.h;
   }
   // First cut: ½ H ρ² ≤ ε₁ g or ≤ ε₁ η ḡ at every angle.
-  bool coarseFits(double lo, double hi, double radius, double* gMin) const {
-    double rMax;
-    const double h = curvature(lo, hi, radius, gMin, &rMax), r2 = 0.5 * radius * radius;
-    return r2 * rMax <= kFirstTolerance || r2 * h <= kFirstTolerance * floor1_;
+  bool coarseFits(const Range& r, double radius) const {
+    const double r2 = 0.5 * radius * radius;
+    return r2 * r.rMax <= kFirstTolerance || r2 * curvature(r, radius) <= kFirstTolerance * floor1_;
   }
-  // (N) and (D) with the tile's allowances εζN̂, εζD̂.
-  bool fits(double lo, double hi, const std::array<float, 8>& g, double nAllow, double dAllow) const {
-    return fitsScaled(lo, hi, g, 0, nAllow, dAllow);
-  }
-  // The same for the bin's descendants `depth` levels down, taken as 4^depth equal parts:
-  // radius / 2^d, spreads / 4^d, flux and solid angle / 4^d.
-  bool fitsScaled(double lo, double hi, const std::array<float, 8>& g, int depth, double nAllow,
-                  double dAllow) const {
-    const double shrink = std::ldexp(1.0, -2 * depth);
-    double gMin, rMax;
-    const double h = curvature(lo, hi, std::ldexp(double(g[3]), -depth), &gMin, &rMax), eps = s_.tolerance();
+  // (N) and (D) with the tile's allowances εζN̂, εζD̂, for the bin's descendants `depth` levels
+  // down taken as 4^depth equal parts: radius / 2^d, spreads, flux and solid angle / 4^d.
+  bool fits(const Range& r, const std::array<float, 8>& g, double nAllow, double dAllow, int depth = 0) const {
+    const double shrink = std::ldexp(1.0, -2 * depth), eps = s_.tolerance();
+    const double h = curvature(r, std::ldexp(double(g[3]), -depth));
     const double sl = 0.5 * g[6] * shrink, sg = 0.5 * g[7] * shrink;
     const double f = g[4] * shrink, om = g[5] * shrink;
-    return (sl * rMax <= eps || sl * h * f <= eps * nAllow) && (sg * rMax <= eps || sg * h * om <= eps * dAllow);
+    return (sl * r.rMax <= eps || sl * h * f <= eps * nAllow) && (sg * r.rMax <= eps || sg * h * om <= eps * dAllow);
   }
 
  private:
@@ -577,10 +577,10 @@ void lowerBounds(const BinTree& tree, const Criterion& crit, const TileGeom& t, 
     const double delta = angleBetween(t.d, g);
     const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
     if (lo >= kHalfPi) continue;
-    double gMin;
-    if (crit.coarseFits(lo, hi, g[3], &gMin) || b.level == 0) {
-      *nLow += gMin * g[4];
-      *dLow += gMin * g[5];
+    const Range r = crit.range(lo, hi);
+    if (b.level == 0 || crit.coarseFits(r, g[3])) {
+      *nLow += r.gMin * g[4];
+      *dLow += r.gMin * g[5];
       continue;
     }
     for (int k = 0; k < 4; ++k) stack.push_back({b.level - 1, b.face, 2 * b.row + (k >> 1), 2 * b.col + (k & 1)});
@@ -667,20 +667,25 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
     size_t unresolved = 0;
   };
   // Whether opening bin b for tile t would end in finest bins only: b fails and so does every
-  // descendant above the finest level (children are tested with their own ranges).
-  std::function<bool(const BinRef&, const TileGeom&, uint32_t)> allFinest = [&](const BinRef& b, const TileGeom& t,
-                                                                               uint32_t tid) {
-    if (b.level == 0) return true;
-    const auto& g = tree.geom[b.node(tree)];
-    if (g[5] <= 0.0f) return true;
-    const double delta = angleBetween(t.d, g);
-    const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
-    if (lo >= kHalfPi || crit.fits(lo, hi, g, share * nLow[tid], share * dLow[tid])) return false;
-    for (int k = 0; k < 4; ++k)
-      if (!allFinest({b.level - 1, b.face, 2 * b.row + (k >> 1), 2 * b.col + (k & 1)}, t, tid)) return false;
+  // descendant above the finest level (each tested with its own range).
+  auto allFinest = [&](const BinRef& root, const TileGeom& t, uint32_t tid, std::vector<BinRef>& todo) {
+    todo.clear();
+    todo.push_back(root);
+    while (!todo.empty()) {
+      const BinRef b = todo.back();
+      todo.pop_back();
+      if (b.level == 0) continue;
+      const auto& g = tree.geom[b.node(tree)];
+      if (g[5] <= 0.0f) continue;
+      const double delta = angleBetween(t.d, g);
+      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
+      if (lo >= kHalfPi || crit.fits(crit.range(lo, hi), g, share * nLow[tid], share * dLow[tid])) return false;
+      for (int k = 0; k < 4; ++k) todo.push_back({b.level - 1, b.face, 2 * b.row + (k >> 1), 2 * b.col + (k & 1)});
+    }
     return true;
   };
   auto run = [&](std::vector<Pair> stack, Out& out) {
+    std::vector<BinRef> todo;
     while (!stack.empty()) {
       const Pair p = stack.back();
       stack.pop_back();
@@ -693,14 +698,16 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
       const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
       if (lo >= kHalfPi) continue;  // beyond every texel's horizon: weight 0
       const bool splitB = p.b.level > 0, splitT = p.k > 0;
-      const bool fits = crit.fits(lo, hi, g, share * nLow[tid], share * dLow[tid]);
+      const Range rg = crit.range(lo, hi);
+      const double nAllow = share * nLow[tid], dAllow = share * dLow[tid];
+      const bool fits = crit.fits(rg, g, nAllow, dAllow);
       if (fits || (!splitB && !splitT)) {
         if (!fits) ++out.unresolved;
         out.pairs.push_back({tid, blockEntry(p.b, 0)});
         continue;
       }
       if (splitB && (!splitT || g[3] >= t.radius) && p.b.level <= kNearBlockLevel &&
-          allFinest(p.b, t, tid)) {
+          allFinest(p.b, t, tid, todo)) {
         // Every descendant would be opened down to the finest level: the same bins as one block.
         out.pairs.push_back({tid, blockEntry(p.b, p.b.level)});
         out.unresolved += size_t(1) << (2 * p.b.level);
@@ -710,9 +717,8 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
         // Far from the tile for its size: take its descendants at the first depth that fits
         // over the whole range (the finest when none does) as one block.
         int depth = 1;
-        while (depth < p.b.level && !crit.fitsScaled(lo, hi, g, depth, share * nLow[tid], share * dLow[tid])) ++depth;
-        if (depth == p.b.level && !crit.fitsScaled(lo, hi, g, depth, share * nLow[tid], share * dLow[tid]))
-          ++out.unresolved;
+        while (depth < p.b.level && !crit.fits(rg, g, nAllow, dAllow, depth)) ++depth;
+        if (depth == p.b.level && !crit.fits(rg, g, nAllow, dAllow, depth)) ++out.unresolved;
         out.pairs.push_back({tid, blockEntry(p.b, depth)});
         continue;
       }

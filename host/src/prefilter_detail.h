@@ -98,9 +98,9 @@ class LobeScale {
  private:
   int index(double theta, bool up) const;
   double gridPosition(double theta) const;
-  std::vector<std::vector<float>> gMin_, hMax_, rMax_;  // sparse tables over the θ grid
+  std::vector<std::vector<std::array<float, 4>>> table_;  // sparse table over the θ grid
   double tolerance_ = 0, gMean_ = 0, horizonSlope_ = 0;
-  double split_ = 0, fineStep_ = 1, coarseStep_ = 1;
+  double split_ = 0, fineStep_ = 1, coarseStep_ = 1, invFine_ = 1, invCoarse_ = 0;
   int grid_ = 0, fine_ = 0;
 };
 

@@ -55,6 +55,8 @@ struct PrefilterOptions {
   double tolerance = 0.01;
   PrefilterMethod method = PrefilterMethod::Cut;
   int samples = 1024;                // Sampled only
+  // Tuning knob: texels per work-item of the cut kernel (1, 8 or 16; 0: 16 on CPUs, 1 on GPUs).
+  int vectorWidth = 0;
   // Per level, recompute a spread subset of tiles with a quarter of the per-bin error bound
   // and report the change (the error estimate, which also drives the tolerance). Off: one
   // pass per level at 2 × tolerance and no estimate.
