@@ -6,9 +6,13 @@
 //     chain against the double brute force (every source texel, exact solid angles) at K
 //     texels drawn uniformly (fixed seed) plus the 64 texels nearest the map's brightest
 //     texel (the sun); both methods when --method is not given.
-//   bench_prefilter timing [MAP] [--size N] ...
-//     whole `prtbake prefilter` commands, warm caches: median of 5 wall times and the peak
-//     resident memory of the child (getrusage).
+//   bench_prefilter samples [MAP...] [--size N] [--schedule S]
+//     the anchors' sampled method at 256, 1024, 4096 and 16384 samples per texel beside
+//     the cut: the error of each level against the brute force and the kernel time (equal error).
+//   bench_prefilter timing [MAP] [--size N] [--schedule S] [--runs K] [-- EXTRA ARGS]
+//     whole `prtbake prefilter` commands after a warm-up run (program caches warm): median and
+//     minimum of K wall times, the child's user + system CPU time and peak resident memory
+//     (wait4), and the load average before and after.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -154,6 +158,7 @@ int accuracy(const Args& a) {
       const double cpu = cpuSeconds() - cpu0;
       for (size_t l = 0; l < r.levels.size() && a.texels > 0; ++l) {
         const PrefilterLevel& lv = r.levels[l];
+        if (lv.spec.alpha == 0) continue;  // r = 0: the resampled source (no lobe to compare)
         const std::vector<size_t> idx = pickTexels(env, lv.spec.size, a.texels);
         const Stats s = compare(lv, env, o.lobe, idx, size_t(std::min(a.texels, 6 * lv.spec.size * lv.spec.size)));
         std::printf("| %s | %s | %zu | %d | %.3f | %.4f | %.2e | %.2e | %.2e | %.1e | %.1e | %.3f | %.3f |\n",
@@ -170,16 +175,135 @@ int accuracy(const Args& a) {
   return 0;
 }
 
+int samples(const Args& a) {
+  Runtime rt(std::getenv("PRTBAKE_DEVICE") ? "" : "cpu");
+  std::vector<std::string> maps = a.maps;
+  if (maps.empty())
+    for (const char* m : {"venice_sunset_1k.hdr", "studio_small_03_1k.hdr"}) maps.push_back(dataPath(std::string("envmaps/hdr/") + m));
+  std::printf("| map | method | level | r | mean rel | p99 rel | max rel | kernel s | level s |\n|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& path : maps) {
+    const EnvMap env = loadEnvironment(path);
+    const std::string name = path.substr(path.find_last_of('/') + 1);
+    std::vector<std::pair<std::string, PrefilterOptions>> runs;
+    PrefilterOptions cut = a.o;
+    cut.method = PrefilterMethod::Cut;
+    runs.push_back({"cut", cut});
+    for (int n : {256, 1024, 4096, 16384}) {
+      PrefilterOptions o = a.o;
+      o.method = PrefilterMethod::Sampled;
+      o.samples = n;
+      runs.push_back({"sampled " + std::to_string(n), o});
+    }
+    bool warm = false;
+    for (const auto& [label, o] : runs) {
+      if (!warm) prefilterEnvironment(rt, env, o), warm = true;  // program builds (kernel times exclude them anyway)
+      const PrefilterResult r = prefilterEnvironment(rt, env, o);
+      for (size_t l = 0; l < r.levels.size(); ++l) {
+        const PrefilterLevel& lv = r.levels[l];
+        if (lv.spec.roughness < 0.1) continue;
+        const std::vector<size_t> idx = pickTexels(env, lv.spec.size, a.texels);
+        const Stats st = compare(lv, env, o.lobe, idx, size_t(std::min(a.texels, 6 * lv.spec.size * lv.spec.size)));
+        std::printf("| %s | %s | %zu | %.3f | %.2e | %.2e | %.2e | %.3f | %.3f |\n", name.c_str(), label.c_str(), l,
+                    lv.spec.roughness, st.mean, st.p99, st.max, lv.kernelSeconds,
+                    lv.kernelSeconds + lv.cutSeconds + lv.estimateSeconds);
+      }
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
+
+struct Child {
+  double wall = 0, cpu = 0;
+  long maxRssKb = 0;
+  int status = 0;
+};
+
+Child runChild(const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::vector<char*> args;
+    for (const auto& s : argv) args.push_back(const_cast<char*>(s.c_str()));
+    args.push_back(nullptr);
+    execv(args[0], args.data());
+    _exit(127);
+  }
+  Child c;
+  rusage u{};
+  wait4(pid, &c.status, 0, &u);
+  c.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  c.cpu = double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+  c.maxRssKb = u.ru_maxrss;
+  return c;
+}
+
+std::string loadAverage() {
+  FILE* f = std::fopen("/proc/loadavg", "r");
+  char buf[64] = {0};
+  if (f) {
+    if (!std::fgets(buf, sizeof buf, f)) buf[0] = 0;
+    std::fclose(f);
+  }
+  std::string s(buf);
+  return s.substr(0, s.find(' '));
+}
+
+int timing(int argc, char** argv) {
+  std::string map = dataPath("envmaps/hdr/venice_sunset_1k.hdr"), size = "256", schedule = "filament";
+  int runs = 5;
+  std::vector<std::string> extra;
+  for (int i = 2; i < argc; ++i) {
+    const std::string s = argv[i];
+    if (s == "--") {
+      for (++i; i < argc; ++i) extra.push_back(argv[i]);
+      break;
+    }
+    if (s == "--size" && i + 1 < argc) size = argv[++i];
+    else if (s == "--schedule" && i + 1 < argc) schedule = argv[++i];
+    else if (s == "--runs" && i + 1 < argc) runs = std::atoi(argv[++i]);
+    else map = s;
+  }
+  const std::string out = "/tmp/bench_prefilter_" + std::to_string(getpid()) + ".ktx2";
+  std::vector<std::string> cmd = {PRTBAKE_CLI_PATH, "prefilter", map, "-o", out, "--size", size, "--schedule", schedule, "-q"};
+  cmd.insert(cmd.end(), extra.begin(), extra.end());
+  std::string line;
+  for (const auto& c : cmd) line += c + " ";
+  const std::string before = loadAverage();
+  runChild(cmd);  // warm-up: program caches
+  std::vector<double> walls, cpus;
+  long rss = 0;
+  for (int i = 0; i < runs; ++i) {
+    const Child c = runChild(cmd);
+    if (c.status != 0) {
+      std::fprintf(stderr, "command failed: %s\n", line.c_str());
+      return 1;
+    }
+    walls.push_back(c.wall), cpus.push_back(c.cpu), rss = std::max(rss, c.maxRssKb);
+  }
+  std::sort(walls.begin(), walls.end());
+  std::sort(cpus.begin(), cpus.end());
+  std::printf("%s\n  wall median %.2f s (min %.2f, max %.2f) over %d runs; CPU (user + system) median %.2f s; peak RSS %.0f MB; "
+              "load average %s before, %s after\n",
+              line.c_str(), walls[walls.size() / 2], walls.front(), walls.back(), runs, cpus[cpus.size() / 2], rss / 1024.0,
+              before.c_str(), loadAverage().c_str());
+  std::remove(out.c_str());
+  std::remove(("/tmp/bench_prefilter_" + std::to_string(getpid()) + ".json").c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: bench_prefilter accuracy|timing [MAP...] [options]\n");
+    std::fprintf(stderr, "usage: bench_prefilter accuracy|samples|timing [MAP...] [options]\n");
     return 2;
   }
   const std::string mode = argv[1];
+  if (mode == "timing") return timing(argc, argv);
   const Args a = parse(argc, argv, 2);
   if (mode == "accuracy") return accuracy(a);
+  if (mode == "samples") return samples(a);
   std::fprintf(stderr, "unknown mode %s\n", mode.c_str());
   return 2;
 }

@@ -4,7 +4,7 @@
 //
 // prefilter_cut: the host has gathered the environment into bins (flux F_b = Σ L_t Ω_t,
 // solid angle Ω_b, radiance-weighted centroid c_b^L, solid-angle centroid c_b^Ω) and chosen,
-// for each tile of 8×8 output texels, a cut through the bin tree fine enough for the lobe
+// for each tile of output texels, a cut through the bin tree fine enough for the lobe
 // (host/src/prefilter_cut.cpp). Each texel then sums
 //   P(R) ≈ Σ_b F_b k(R, c_b^L) / Σ_b Ω_b k(R, c_b^Ω)
 // over its tile's cut. The lobe is evaluated from e = 1 − R·c = |R − c|²/2, which keeps

@@ -14,8 +14,9 @@
 namespace prtbake {
 namespace {
 
-// Leaves (8×8 texels) per face recomputed for the error estimate, spread over the face.
-constexpr size_t kEstimateLeavesPerFace = 16;
+// Texels per face recomputed for the error estimate (whole leaves spread over the face: 16 of
+// 8×8 or 4 of 16×16).
+constexpr size_t kEstimateTexelsPerFace = 1024;
 // The first per-bin tolerance, relative to the target, and the most passes per level. On the
 // four HDR maps the 99th percentile of a level's error is 0.1 to 1 times the per-bin
 // tolerance (narrow lobes lower, r = 1 near 1), so most levels take one pass.
@@ -191,9 +192,9 @@ class CutRunner {
                         const_cast<float*>(b.data()));
   }
 
-  // Computes the leaves `leaves[face]` (all of the face's when empty... see run) of the n×n
-  // level into `out` (6n²·3 floats on the device), face by face; returns the lane-bin
-  // evaluations. Adds host (cut) and device seconds.
+  // Computes the leaves leaves[face] of each face of the level into `out` (6n²·3 floats on the
+  // device), one face per launch after its cut; returns the texel-bin evaluations. Adds host
+  // (cut) and device seconds.
   size_t run(const detail::LobeScale& scale, cl_float4 lobe, const detail::TileTree& tt,
              const std::vector<std::vector<int>>& leaves, cl::Buffer& out, double* cutSeconds, double* kernelSeconds,
              size_t* unresolved) {
@@ -204,7 +205,9 @@ class CutRunner {
       const std::vector<int>& part = leaves[size_t(face)];
       if (part.empty()) continue;
       const auto t0 = std::chrono::steady_clock::now();
-      const detail::TileCuts cuts = detail::buildTileCuts(tree_, scale, tt, face, part.size() == allLeaves(tt).size() ? std::vector<int>{} : part);
+      // Every leaf of the face: cut every tile (an empty list); a subset: only the tiles above it.
+      const bool whole = part.size() == allLeaves(tt).size();
+      const detail::TileCuts cuts = detail::buildTileCuts(tree_, scale, tt, face, whole ? std::vector<int>{} : part);
       *cutSeconds += secondsSince(t0);
       if (unresolved) *unresolved += cuts.unresolved;
       for (int leaf : part)
@@ -370,7 +373,8 @@ PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const Prefi
       const std::vector<int> faceLeaves = CutRunner::allLeaves(tt);
       const std::vector<std::vector<int>> all(6, faceLeaves);
       // The estimate's leaves: spread over each face.
-      const size_t perFace = std::min(faceLeaves.size(), kEstimateLeavesPerFace);
+      const size_t perFace =
+          std::min(faceLeaves.size(), std::max<size_t>(1, kEstimateTexelsPerFace / size_t(tt.leaf * tt.leaf)));
       std::vector<std::vector<int>> subset(6);
       for (int f = 0; f < 6; ++f) {
         for (size_t i = 0; i < perFace; ++i)

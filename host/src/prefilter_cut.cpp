@@ -23,7 +23,7 @@
 // uses the solid-angle centroid with the same g, so a constant environment gives exactly
 // the constant.
 //
-// Finding the cut. Output texels are grouped in a quadtree of tiles (8×8 leaves) and the
+// Finding the cut. Output texels are grouped in a quadtree of tiles (8×8 or 16×16 leaves) and the
 // cut is found for (tile, bin) pairs at once: a pair that meets the criterion for every
 // texel of the tile is listed with the tile (shared by all its texels), otherwise the
 // larger of the two is opened. Where the host would open a bin all the way down to its
@@ -455,13 +455,6 @@ double LobeScale::gridPosition(double th) const {
   return fine_ + (std::min(th, kHalfPi) - split_) * invCoarse_;
 }
 
-double LobeScale::weight(double th) const {
-  const double x = gridPosition(th);
-  const int j = std::min(grid_ - 1, int(x));
-  const double f = x - j;
-  return (1 - f) * table_[0][size_t(j)][0] + f * table_[0][size_t(j) + 1][0];
-}
-
 // --- tile cuts ---
 
 namespace {
@@ -611,7 +604,7 @@ TileTree makeTileTree(int n) {
   t.n = n;
   t.padded = 1;
   while (t.padded < n) t.padded *= 2;
-  t.leaf = std::min(kLeafSize, t.padded);
+  t.leaf = std::min(n >= kLargeLeafFrom ? 2 * kLeafSize : kLeafSize, t.padded);
   t.levels = 1;
   while ((t.leaf << (t.levels - 1)) < t.padded) ++t.levels;
   t.offset.assign(size_t(t.levels) + 1, 0);

@@ -1,5 +1,5 @@
 // Private: the pieces of the prefilter driver (prefilter.cpp) that tests and the
-// reference share: the bin tree, the lobe's length scale and the tile cuts.
+// reference share: the bin tree, the lobe's tables and the tile cuts (prefilter_cut.cpp).
 #pragma once
 
 #include <array>
@@ -14,20 +14,6 @@
 
 namespace prtbake::detail {
 
-// The quadtree of cube-face bins over the source. Level 0 holds the finest bins
-// (faceSize0 per face side), level m bins of faceSize0 >> m, the last level one bin per
-// face. Node (m, face, row, col) sits at offset[m] + (face·M + row)·M + col, M = faceSize0 >> m.
-// Per node (float4 each, for the kernel):
-//   flux  (F_r, F_g, F_b, Ω): Σ L_t Ω_t and Σ Ω_t over the source texels whose centre falls
-//         in the bin (exact texel solid angles, yaw applied)
-//   dirL  the radiance-weighted centroid direction normalize(Σ w_t Ω_t ω_t), w = (r+g+b)/3
-//         (the solid-angle one for a black bin)
-//   dirG  the solid-angle-weighted centroid direction normalize(Σ Ω_t ω_t)
-// and, for the host's cut only (geom), the spreads about those centroids
-//   spreadL = Σ w_t Ω_t |ω_t − c^L|² / Σ w_t Ω_t = 2 (1 − |Σ w_t Ω_t ω_t| / Σ w_t Ω_t)
-//   spreadG, the same with w = 1 (0 for a bin of one texel, whatever its size).
-// Sums are taken in double and rounded once. The arrays are filled once, never zeroed first
-// (fresh memory is slow to touch on these machines, PERF.md).
 // An allocator that leaves new elements uninitialised and backs large blocks (≥ 4 MiB) with
 // transparent huge pages (madvise), because each first touch of a 4 KiB page is a slow fault on
 // these VMs (PERF.md): the bin tree of a 1k map went from 0.25 s to 0.06 s.
@@ -57,6 +43,20 @@ struct UninitAllocator {
 template <class T>
 using RawVector = std::vector<T, UninitAllocator<T>>;
 
+// The quadtree of cube-face bins over the source. Level 0 holds the finest bins
+// (faceSize0 per face side), level m bins of faceSize0 >> m, the last level one bin per
+// face. Node (m, face, row, col) sits at offset[m] + (face·M + row)·M + col, M = faceSize0 >> m.
+// Per node (float4 each, for the kernel):
+//   flux  (F_r, F_g, F_b, Ω): Σ L_t Ω_t and Σ Ω_t over the source texels whose centre falls
+//         in the bin (exact texel solid angles, yaw applied)
+//   dirL  the radiance-weighted centroid direction normalize(Σ w_t Ω_t ω_t), w = (r+g+b)/3
+//         (the solid-angle one for a black bin)
+//   dirG  the solid-angle-weighted centroid direction normalize(Σ Ω_t ω_t)
+// and, for the host's cut only (geom), the spreads about those centroids
+//   spreadL = Σ w_t Ω_t |ω_t − c^L|² / Σ w_t Ω_t = 2 (1 − |Σ w_t Ω_t ω_t| / Σ w_t Ω_t)
+//   spreadG, the same with w = 1 (0 for a bin of one texel, whatever its size).
+// Sums are taken in double and rounded once. The arrays are filled once, never zeroed first
+// (fresh memory is slow to touch on these machines, PERF.md).
 struct BinTree {
   int faceSize0 = 0;
   int levels = 0;
@@ -68,7 +68,7 @@ struct BinTree {
   size_t nodes() const { return offset.back(); }
 };
 
-// faceSize0: a power of two. Threads over the source rows.
+// faceSize0: a power of two up to 1024.
 BinTree buildBinTree(const EnvMap& env, int faceSize0);
 
 // The finest bin size used for a source: the largest power of two not above the source's
@@ -92,8 +92,6 @@ class LobeScale {
   void range(double lo, double hi, double* gMin, double* hMax, double* rMax) const;
   double meanWeight() const { return gMean_; }
   double horizonSlope() const { return horizonSlope_; }
-  // g at θ (table lookup, linear between grid points).
-  double weight(double theta) const;
 
  private:
   int index(double theta, bool up) const;
@@ -105,10 +103,15 @@ class LobeScale {
 };
 
 // Output tiles. Each face of an n×n level is covered by a quadtree of tiles over the
-// padded size P = the power of two ≥ n: leaves of L×L texels (L = min(kLeafSize, P)), parents doubling up to the whole face; tiles that start beyond n
-// do not exist, tiles across it are clipped. Tile (k, face, ty, tx), k = 0 for the leaves,
+// padded size P = the power of two ≥ n: leaves of L×L texels (L = min(kLeafSize, P), twice
+// that from n = kLargeLeafFrom), parents doubling up to the whole face; tiles that start
+// beyond n do not exist, tiles across it are clipped. Larger leaves share more of the cut and
+// sum more bins: measured at the filament schedule, 16² leaves halve the host's share of the
+// 512² level of a 1024 chain (3.4 → 1.8 s) for a slower kernel (1.6 → 1.9 s), and cost more
+// than they save at 128² (0.8 → 0.9 s). Tile (k, face, ty, tx), k = 0 for the leaves,
 // has id offset[k] + (face·S_k + ty)·S_k + tx with S_k = P/(L·2^k) tiles per side.
 constexpr int kLeafSize = 8;
+constexpr int kLargeLeafFrom = 256;
 struct TileTree {
   int n = 0, padded = 0, leaf = 0, levels = 0;
   std::vector<uint32_t> offset;  // levels + 1 entries
@@ -120,8 +123,8 @@ struct TileTree {
 TileTree makeTileTree(int n);
 
 // The cut: for every tile, the bins whose whole contribution it takes for all its texels,
-// start[id]..start[id+1] in `bins` (entries as forEachBinEntry reads them); a texel sums the lists of its leaf and of every tile
-// above it. Found by a dual traversal of tiles and bins: a (tile, bin) pair is taken when
+// start[id]..start[id+1] in `bins` (entries as forEachBinEntry reads them); a texel sums the
+// lists of its leaf and of every tile above it. Found by a dual traversal of tiles and bins: a (tile, bin) pair is taken when
 // the bin meets the criterion of prefilter_cut.cpp for every texel of the tile; otherwise
 // the larger of the two is opened (a finest bin in a leaf is taken anyway and counted in
 // `unresolved`). Bins beyond the horizon of every texel of a tile, and empty bins, are

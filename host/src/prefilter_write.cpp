@@ -164,8 +164,8 @@ std::string prefilterSidecarText(const PrefilterResult& r, const EnvMap& env, co
                     {"meaning", "each level's estimated 99th-percentile relative error (max over channels) is kept within "
                                 "the target by halving the per-bin tolerance, at most 3 times"}};
   j["error_estimate_definition"] =
-      "per level: |P - P'|/P' x 4/3 (max over channels) over 16 leaves of 8x8 texels per face, P' recomputed with a "
-      "quarter of the per-bin tolerance (the cut's error is second order in the bin size); null for resampled and "
+      "per level: |P - P'|/P' x 4/3 (max over channels) over about 1024 texels per face (whole leaves of 8x8 or "
+      "16x16), P' recomputed with a quarter of the per-bin tolerance (the cut's error is second order in the bin size); null for resampled and "
       "sampled levels";
   j["conventions"] = {
       {"faces", "+X, -X, +Y, -Y, +Z, -Z"},

@@ -12,7 +12,7 @@
 //
 // Method (docs/prefilter.md): the environment's texels are gathered into a quadtree of
 // cube-face bins (each bin keeps its flux, its solid angle and two centroids: the
-// radiance-weighted and the solid-angle-weighted direction); for each 8×8 tile of output
+// radiance-weighted and the solid-angle-weighted direction); for each tile of output
 // texels the host picks a cut through that tree in which every bin is small compared
 // with the lobe's local length scale (tolerance), and the kernel sums
 //   P(R) ≈ Σ_b F_b k(R·c_b^L) / Σ_b Ω_b k(R·c_b^Ω)
@@ -95,9 +95,9 @@ void validatePrefilterOptions(const PrefilterOptions& options);
 // One level (n = 1): r = 0 (babylon: α_G = 1/size).
 std::vector<PrefilterLevelSpec> prefilterLevels(const PrefilterOptions& options);
 
-// Per-level error estimate: relative change |P − P'|/P' (max over channels) when 16 leaves
-// (8×8 texels) per face are recomputed with a quarter of the per-bin error bound, scaled by
-// 4/3 (the cut's error is of second order in the bins' size: it falls 4× when their radius
+// Per-level error estimate: relative change |P − P'|/P' (max over channels) when about 1024
+// texels per face (16 leaves of 8×8 or 4 of 16×16) are recomputed with a quarter of the
+// per-bin error bound, scaled by 4/3 (the cut's error is of second order in the bins' size: it falls 4× when their radius
 // halves). Zero for r = 0 levels (resampling).
 struct PrefilterErrorEstimate {
   double mean = 0, p99 = 0, max = 0;
