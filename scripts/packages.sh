@@ -7,6 +7,8 @@
 PRTBAKE_BUILD_PKGS="build-essential cmake pocl-opencl-icd ocl-icd-opencl-dev opencl-clhpp-headers clinfo \
 libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev libstb-dev nlohmann-json3-dev"
 PRTBAKE_TEST_PKGS="$PRTBAKE_BUILD_PKGS catch2 slurm-wlm munge chromium"
+# The KTX2 read-back tests run ktx-parse (tests/js) on Node: nodejs, and npm where the nodejs
+# package does not bring it (NodeSource's does; Debian's does not).
 PRTBAKE_PKGS=$PRTBAKE_TEST_PKGS
 
 install_missing() {
@@ -16,4 +18,15 @@ install_missing() {
   [ "$(id -u)" = 0 ] || sudo=sudo
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends $missing
+}
+
+# Node and npm for the KTX2 read-back tests, then the pinned modules of tests/js (npm ci). A
+# machine without the npm registry keeps going: those tests then skip and say why.
+install_node_tools() {
+  install_missing nodejs
+  command -v npm >/dev/null 2>&1 || install_missing npm
+  if [ ! -f tests/js/node_modules/.package-lock.json ] || [ tests/js/package-lock.json -nt tests/js/node_modules/.package-lock.json ]; then
+    (cd tests/js && npm ci --no-audit --no-fund --loglevel=error) ||
+      echo "setup: npm ci in tests/js failed (no registry?): the KTX2 read-back tests will be skipped" >&2
+  fi
 }

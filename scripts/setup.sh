@@ -15,6 +15,7 @@ if [ "${1:-}" = --cli ]; then
 else
   # shellcheck disable=SC2086
   install_missing $PRTBAKE_TEST_PKGS
+  install_node_tools
   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DPRTBAKE_BUILD_TESTS=ON -DPRTBAKE_BUILD_BENCH=ON \
     ${PRTBAKE_CMAKE_ARGS:-}
   cmake --build build -j"$(nproc)"

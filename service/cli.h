@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "prtbake/prefilter.h"
+
 namespace prtbake::cli {
 
 struct OptionSpec {
@@ -53,6 +55,11 @@ struct Registrar {
 
 // Prints "prtbake: <text>" to stderr unless quiet (status lines, not errors).
 void status(const CommandLine& cl, const std::string& text);
+
+// The prefilter options of a command line (--lobe, --schedule, --roughness, --levels,
+// --tolerance, --method, --samples, --no-estimate, and the base size from `sizeOption`),
+// validated (cmd_prefilter.cpp).
+PrefilterOptions prefilterOptionsFromCli(const CommandLine& cl, const std::string& sizeOption, int defaultSize);
 
 }  // namespace prtbake::cli
 

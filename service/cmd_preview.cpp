@@ -11,6 +11,7 @@
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
 #include "prtbake/mesh.h"
+#include "prtbake/prefilter.h"
 #include "prtbake/preview.h"
 #include "prtbake/runtime.h"
 #include "prtbake/sh.h"
@@ -181,17 +182,33 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
   return 0;
 }
 
+int previewPrefilter(const CommandLine& cl, const std::string& input, const std::string& output) {
+  const PrefilterOptions o = prefilterOptionsFromCli(cl, "base", 128);
+  const int width = panelWidth(cl, 256);
+  EnvLoadOptions lo;
+  lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
+  EnvMap env = loadEnvironment(input, lo);
+  env.yawDegrees = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
+  Runtime rt(cl.device());
+  const PrefilterResult r = prefilterEnvironment(rt, env, o);
+  writePrefilterPreviewPng(output, rt, r, width, input);
+  status(cl, "wrote " + output + " (" + std::to_string(r.levels.size()) + " levels of a " + toString(o.lobe) + " chain, " +
+                 toString(o.schedule) + " schedule, base " + std::to_string(o.baseSize) + ")");
+  return 0;
+}
+
 int runPreview(const CommandLine& cl) {
   const std::string kind = cl.positional.at(0), input = cl.positional.at(1), output = cl.get("output");
   if (output.empty()) throw UsageError("preview", "missing -o OUT.png");
   if (kind == "env") return previewEnv(cl, input, output);
   if (kind == "lut") return previewLut(cl, input, output);
   if (kind == "mesh") return previewMesh(cl, input, output);
-  throw UsageError("preview", "unknown kind '" + kind + "' (expected env, lut or mesh)");
+  if (kind == "prefilter") return previewPrefilter(cl, input, output);
+  throw UsageError("preview", "unknown kind '" + kind + "' (expected env, lut, mesh or prefilter)");
 }
 
 PRTBAKE_COMMAND(Command{
-    "preview", "render PNG previews of products (env, lut, mesh)",
+    "preview", "render PNG previews of products (env, lut, mesh, prefilter)",
     "prtbake preview env (ENVMAP | SH.json) -o OUT.png [--order N] [--window W] [--size W] [--exposure EV]\n"
     "       prtbake preview lut LUT.exr -o OUT.png [--size S]\n"
     "       prtbake preview mesh MESH (--transport T.npy | a glTF copy with _PRT_* attributes) --env SH.json\n"
@@ -199,11 +216,15 @@ PRTBAKE_COMMAND(Command{
     "               [--view front|side|top|YAW,PITCH] [--rotate-light DEG] [--exposure EV] [--background ENVMAP]\n"
     "       prtbake preview mesh MESH (--matrices M.npy | --cpca C.npz) --env SH.json -o OUT.png\n"
     "               [--lobe cosine|phong:S|ggx:R] [--unnormalised] [--size WxH] [--view V] [--rotate-light DEG]\n"
+    "       prtbake preview prefilter ENVMAP -o OUT.png [--size W] [--base N] [--lobe L] [--schedule S | --roughness R,...]\n"
+    "               [--levels N] [--tolerance E]\n"
     "env: lat-long panels: the environment, its SH radiance reconstruction, and irradiance/pi.\n"
     "lut: each channel over N.V (x) and roughness (y, upward) with labelled axes.\n"
     "mesh: the mesh shaded with its baked transport under the environment's radiance SH\n"
     "      (L = albedo * sum_i l_i T_i), the environment as background; --rotate-light turns\n"
-    "      the lighting about +Y (right-handed, degrees) with the exact SH rotation.",
+    "      the lighting about +Y (right-handed, degrees) with the exact SH rotation.\n"
+    "prefilter: every level of the chain prtbake prefilter makes (base --base, default 128) as a lat-long\n"
+    "      panel, and spheres r = 0 ... 1 shaded with the split sum (this chain times prtbake's GGX LUT).",
     {{"output", true, "output PNG (also -o)"},
      {"order", true, "SH order of the reconstruction (env map input; default 3)"},
      {"window", true, "none|hann|lanczos|auto (env map input)"},
@@ -218,8 +239,16 @@ PRTBAKE_COMMAND(Command{
      {"exposure", true, "exposure in stops before the sRGB curve (default 0)"},
      {"matrices", true, "mesh: glossy transfer matrices (.npy of prtbake transport --transfer matrix)"},
      {"cpca", true, "mesh: CPCA-compressed glossy transfer (.npz)"},
-     {"lobe", true, "mesh, glossy: cosine | phong:S | ggx:R (default phong:16)"},
-     {"unnormalised", false, "mesh, glossy: do not divide by the lobe's unoccluded white-sky response"}},
+     {"lobe", true, "mesh, glossy: cosine | phong:S | ggx:R (default phong:16); prefilter: ggx (default), charlie or lambertian"},
+     {"unnormalised", false, "mesh, glossy: do not divide by the lobe's unoccluded white-sky response"},
+     {"base", true, "prefilter: base face size of the chain (default 128)"},
+     {"schedule", true, "prefilter: linear (default), filament or babylon"},
+     {"roughness", true, "prefilter: explicit roughness per level"},
+     {"levels", true, "prefilter: level count"},
+     {"tolerance", true, "prefilter: error target (default 0.01)"},
+     {"method", true, "prefilter: cut (default) or sampled"},
+     {"samples", true, "prefilter: samples per texel with --method sampled"},
+     {"no-estimate", false, "prefilter: skip the error estimate"}},
     2, 2, runPreview});
 
 }  // namespace

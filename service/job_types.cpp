@@ -11,6 +11,7 @@
 #include "prtbake/hash.h"
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
+#include "prtbake/prefilter.h"
 #include "prtbake/preview.h"
 #include "prtbake/transport.h"
 #include "prtbake/sh.h"
@@ -221,6 +222,53 @@ ExecResult runLut(const Job& job, ExecContext& ctx) {
   return result;
 }
 
+// --- prefilter: environment → prefiltered specular chain (prtbake prefilter) ---
+PrefilterOptions prefilterOptionsFrom(const json& p) {
+  PrefilterOptions o;
+  o.lobe = parsePrefilterLobe(p["lobe"].get<std::string>(), "lobe");
+  o.baseSize = p["size"].get<int>();
+  if (!p["levels"].is_null()) o.levels = p["levels"].get<int>();
+  if (!p["roughness"].is_null()) {
+    o.schedule = PrefilterSchedule::Explicit;
+    o.roughness = p["roughness"].get<std::vector<double>>();
+  } else {
+    o.schedule = parsePrefilterSchedule(p["schedule"].get<std::string>(), "schedule");
+  }
+  o.tolerance = p["tolerance"].get<double>();
+  o.method = parsePrefilterMethod(p["method"].get<std::string>(), "method");
+  o.samples = p["samples"].get<int>();
+  return o;
+}
+
+ExecResult runPrefilter(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  const PrefilterOptions options = prefilterOptionsFrom(p);
+  validatePrefilterOptions(options);
+  EnvLoadOptions loadOptions;
+  loadOptions.layout = p["layout"].get<std::string>();
+  loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
+  const auto t0 = std::chrono::steady_clock::now();
+  EnvMap env = loadEnvironment(job.input, loadOptions);
+  env.yawDegrees = p["yaw"].get<double>();
+  const double loadSeconds = secondsSince(t0);
+  const PrefilterResult r = prefilterEnvironment(ctx.runtime(), env, options);
+  const json meta = {{"job", job.id}, {"parameters", p}, {"timings_seconds", {{"load", loadSeconds}}}};
+  writePrefilterFiles(r, env, ctx.wants("json") ? ctx.output("json") : std::string(),
+                      ctx.wants("ktx2") ? ctx.output("ktx2") : std::string(), p["float32"].get<bool>(),
+                      ctx.wants("exr") ? ctx.output("exr") : std::string(), p["half"].get<bool>(), meta.dump());
+  if (ctx.wants("png"))
+    writePrefilterPreviewPng(ctx.output("png"), ctx.runtime(), r, 256, job.input);
+  ExecResult result;
+  result.inputFiles = filesRead(job, env.inputFiles);
+  json levels = json::array();
+  for (const auto& l : r.levels)
+    levels.push_back({{"size", l.spec.size}, {"roughness", l.spec.roughness}, {"error_p99", l.error.p99}});
+  result.report = {{"levels", levels},
+                   {"timings", {{"load_seconds", loadSeconds}, {"kernel_seconds", r.kernelSeconds},
+                                {"total_seconds", r.totalSeconds}}}};
+  return result;
+}
+
 KeySpec integer(const std::string& name, long long def, double lo, double hi) {
   return {name, ValueKind::Integer, def, lo, hi, {}};
 }
@@ -311,6 +359,52 @@ std::vector<JobType> makeJobTypes() {
   lut.execute = runLut;
   types.push_back(lut);
   types.push_back(glossyJobType());
+
+  JobType prefilter;
+  prefilter.name = "prefilter";
+  prefilter.input = InputKind::FileOrDirectory;
+  prefilter.outputKinds = {"ktx2", "exr", "json", "png"};
+  prefilter.keys = {choice("lobe", "ggx", {"ggx", "charlie", "lambertian"}),
+                    choice("schedule", "linear", {"linear", "filament", "babylon"}),
+                    {"roughness", ValueKind::NumberList, nullptr, 0.0, 1.0, {}},
+                    integer("size", 256, 1, kPrefilterMaxSize),
+                    {"levels", ValueKind::Integer, nullptr, 1, kPrefilterMaxLevels, {}},
+                    number("tolerance", 0.01, 1e-4, 0.1),
+                    choice("method", "cut", {"cut", "sampled"}),
+                    integer("samples", 1024, 1, kPrefilterMaxSamples),
+                    boolean("float32", false),
+                    boolean("half", false),
+                    choice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"}),
+                    number("yaw", 0.0, -360.0, 360.0),
+                    boolean("clamp_invalid", false)};
+  prefilter.check = [](const json& raw, const json& p) {
+    std::vector<std::pair<std::string, std::string>> problems;
+    const bool outputs = raw.contains("outputs") && raw["outputs"].is_object();
+    if (outputs && !raw["outputs"].contains("ktx2") && !raw["outputs"].contains("exr"))
+      problems.push_back({"outputs", "a prefilter job needs a 'ktx2' or an 'exr' output"});
+    if (raw.contains("roughness") && raw.contains("schedule"))
+      problems.push_back({"roughness", "a roughness list is its own schedule; it cannot be combined with schedule"});
+    if (raw.contains("samples") && p["method"] != "sampled") problems.push_back({"samples", "only applies to method 'sampled'"});
+    if (p["method"] == "sampled" && p["lobe"] != "ggx")
+      problems.push_back({"method", "the sampled method compares with the anchors' GGX filtering; use lobe 'ggx'"});
+    if (raw.contains("float32") && !(outputs && raw["outputs"].contains("ktx2")))
+      problems.push_back({"float32", "only applies with a ktx2 output"});
+    if (raw.contains("half") && !(outputs && raw["outputs"].contains("exr")))
+      problems.push_back({"half", "only applies with an exr output"});
+    const int size = p["size"].get<int>();
+    if (outputs && raw["outputs"].contains("exr") && (size & (size - 1)))
+      problems.push_back({"size", "an exr output (a mip-mapped OpenEXR cube) needs a power-of-two size, got " + std::to_string(size)});
+    if (problems.empty()) {
+      try {
+        validatePrefilterOptions(prefilterOptionsFrom(p));
+      } catch (const Error& e) {
+        problems.push_back({e.subject().substr(e.subject().find_first_not_of('-')), e.detail()});
+      }
+    }
+    return problems;
+  };
+  prefilter.execute = runPrefilter;
+  types.push_back(prefilter);
   return types;
 }
 

@@ -93,6 +93,19 @@ std::string checkValue(const KeySpec& k, const json& v, json* normalised) {
       if (!v.is_string() || v.get<std::string>().empty()) return "expected a path, got " + shown(v);
       *normalised = v;
       return "";
+    case ValueKind::NumberList: {
+      if (!v.is_array() || v.empty() || v.size() > 16) return "expected an array of 1 to 16 numbers, got " + shown(v);
+      json out = json::array();
+      for (const json& x : v) {
+        if (!x.is_number()) return "expected an array of 1 to 16 numbers, got " + shown(v);
+        const double d = x.get<double>();
+        if (!std::isfinite(d) || d < k.lo || d > k.hi)
+          return formatNumber(d) + " is out of range [" + formatNumber(k.lo) + ", " + formatNumber(k.hi) + "]";
+        out.push_back(d);
+      }
+      *normalised = out;
+      return "";
+    }
   }
   return "";
 }

@@ -23,8 +23,9 @@ namespace prtbake::jobs {
 
 using nlohmann::json;
 
-// Path: a file that must exist, relative paths resolved like `input`.
-enum class ValueKind { Integer, Number, Boolean, Choice, Path };
+// Path: a file that must exist, relative paths resolved like `input`. NumberList: a JSON
+// array of 1 to 16 numbers, each in [lo, hi].
+enum class ValueKind { Integer, Number, Boolean, Choice, Path, NumberList };
 
 // One key of a job type, named and typed like the command-line option it mirrors.
 struct KeySpec {

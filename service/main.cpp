@@ -39,7 +39,7 @@ void printOptions(const std::vector<OptionSpec>& options) {
 
 void printTopHelp() {
   std::cout << "prtbake " << version()
-            << ": SH environment lighting, PRT transport and BRDF lookup tables on OpenCL\n\n"
+            << ": SH environment lighting, PRT transport, BRDF lookup tables and prefiltered environments on OpenCL\n\n"
                "usage: prtbake COMMAND [ARGS] [OPTIONS]\n\ncommands:\n";
   auto commands = registry();
   std::sort(commands.begin(), commands.end(),

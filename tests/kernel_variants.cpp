@@ -47,6 +47,9 @@ int main() {
     for (int light : {1, 3, kMaxShOrder})
       for (bool shBackground : {false, true})
         print("glossy_preview.cl", detail::glossyPreviewOptions(out, light, shBackground));
+  for (PrefilterLobe lobe : {PrefilterLobe::Ggx, PrefilterLobe::Charlie, PrefilterLobe::Lambertian})
+    for (int vw : {1, 8, 16}) print("prefilter.cl", detail::prefilterCutOptions(lobe, vw));
+  print("prefilter.cl", detail::prefilterSampledOptions());
   print("sh_eval.cl", "");
   return 0;
 }

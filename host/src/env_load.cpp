@@ -12,7 +12,6 @@
 //                                      [−Y]                                   [−Y]
 //                                                                             [−Z] (rotated 180°)
 //   1:6, 6:1    strips of the six faces in the order +X, −X, +Y, −Y, +Z, −Z
-#include <ImfEnvmap.h>
 #include <malloc.h>
 #include <sys/stat.h>
 
@@ -27,6 +26,7 @@
 #include <mutex>
 #include <thread>
 
+#include "exr_cube.h"
 #include "image_read.h"
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
@@ -143,49 +143,15 @@ EnvMap fromStrip(const Image& img, const std::string& path) {
   return env;
 }
 
-// OpenEXR cube (ENVMAP_CUBE): six N×N faces stacked vertically in a N×6N data
-// window, each with the orientation ImfEnvmap.h defines. We do not restate that
-// table; we ask the library. For our texel (f, row, col) we hand
-// Imf::CubeMap::faceAndPixelPosition the unnormalised direction
-// u·axisU + v·axisV + axisN (its components are 0, ±1, ±u, ±v, exact in float
-// for power-of-two N), and Imf::CubeMap::pixelPosition turns the face position
-// into a pixel of the data window.
-//
-// OpenEXR samples a face at pixel positions 0 … N−1 mapped to [−1, 1] (pixel
-// centres on the face edges), we at centres u = 2(c + 0.5)/N − 1. Our texel c so
-// lands at c + 0.5 − (c + 0.5)/N (or its mirror N − 1 − that), strictly within
-// 0.5 of an integer: rounding recovers the pixel exactly. The two conventions
-// differ by less than half a texel in angle; the data is the same grid.
-// Self-test: the map must use every pixel of the file exactly once.
+// OpenEXR cube (ENVMAP_CUBE): six N×N faces stacked vertically in a N×6N data window,
+// each oriented as ImfEnvmap.h defines (exr_cube.h asks the library where each texel is).
 EnvMap fromOpenExrCube(const Image& img, const std::string& path) {
   if (img.height != 6 * img.width)
     throw InputError(path, "an OpenEXR cube map must be N wide and 6N high (got " + sizeText(img.width, img.height) + ")");
   const int n = img.width;
   EnvMap env = emptyCube(n, path, "openexr-cube", img);
-  const Imath::Box2i dw(Imath::V2i(img.dataMinX, img.dataMinY),
-                        Imath::V2i(img.dataMinX + img.width - 1, img.dataMinY + img.height - 1));
-  std::vector<unsigned char> used(size_t(img.width) * size_t(img.height), 0);
-  for (int f = 0; f < 6; ++f) {
-    const CubeFaceBasis& b = env.faces[size_t(f)];
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < n; ++c) {
-        const float u = float(2.0 * (c + 0.5) / n - 1.0), v = float(2.0 * (r + 0.5) / n - 1.0);
-        const Imath::V3f d(float(u * b.axisU[0] + v * b.axisV[0] + b.axisN[0]),
-                           float(u * b.axisU[1] + v * b.axisV[1] + b.axisN[1]),
-                           float(u * b.axisU[2] + v * b.axisV[2] + b.axisN[2]));
-        Imf::CubeMapFace exrFace;
-        Imath::V2f pif;
-        Imf::CubeMap::faceAndPixelPosition(d, dw, exrFace, pif);
-        const Imath::V2f pos = Imf::CubeMap::pixelPosition(exrFace, dw, pif);
-        const int x = int(std::floor(pos.x + 0.5f)) - dw.min.x, y = int(std::floor(pos.y + 0.5f)) - dw.min.y;
-        PRTBAKE_CHECK(x >= 0 && x < img.width && y >= 0 && y < img.height, "OpenEXR cube pixel outside the image");
-        const size_t src = size_t(y) * size_t(img.width) + size_t(x);
-        PRTBAKE_CHECK(used[src] == 0, "two cube texels map to one OpenEXR pixel");
-        used[src] = 1;
-        copyTexels(img, src, env, (size_t(f) * size_t(n) + size_t(r)) * size_t(n) + size_t(c), 1);
-      }
-  }
-  // 6N² distinct pixels of a 6N² image were hit: each exactly once.
+  const std::vector<size_t> pixel = detail::openExrCubePixels(n, env.faces, path);
+  for (size_t t = 0; t < pixel.size(); ++t) copyTexels(img, pixel[t], env, t, 1);
   return env;
 }
 

@@ -7,6 +7,7 @@
 
 #include "prtbake/envmap.h"
 #include "prtbake/lut.h"
+#include "prtbake/prefilter.h"
 
 namespace prtbake::detail {
 
@@ -22,5 +23,9 @@ std::string previewMeshOptions(int order, int channels, int lightOrder, bool shB
 std::string glossyOptions(int orderOut, int orderIn, bool visibility);
 // glossy_preview.cl: the matrices' output order, lighting order, SH or image background.
 std::string glossyPreviewOptions(int orderOut, int lightOrder, bool shBackground);
+// prefilter.cl, prefilter_cut: the lobe and texels per work-item (1, 8, 16);
+// prefilter_sampled: one texel per work-item.
+std::string prefilterCutOptions(PrefilterLobe lobe, int vectorWidth);
+std::string prefilterSampledOptions();
 
 }  // namespace prtbake::detail

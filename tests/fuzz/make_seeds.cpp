@@ -260,6 +260,10 @@ void jobFiles() {
     if (name.rfind("job_", 0) == 0 && name.size() < 200) put("jobfile", "corpus_" + name, parts({slurp(e.path().string()), ""}));
   }
   put("jobfile", "demo", parts({slurp(gTests + "/../assets/demo.json"), ""}));
+  put("jobfile", "prefilter", parts({R"({"jobs": [
+  {"id": "spec", "type": "prefilter", "input": "in.exr", "outputs": {"ktx2": "s.ktx2", "exr": "s.exr", "json": "s.json"}, "schedule": "filament", "size": 64},
+  {"id": "sheen", "type": "prefilter", "input": "in.exr", "outputs": {"ktx2": "c.ktx2"}, "lobe": "charlie", "roughness": [0.25, 1], "float32": true}]})",
+                                     ""}));
 }
 
 // Glossy matrices as the bake writes them (float32 and float16, grey and RGB) and the CPCA

@@ -14,6 +14,7 @@
 #include "prtbake/env_sh.h"
 #include "prtbake/envmap.h"
 #include "prtbake/mesh.h"
+#include "prtbake/prefilter.h"
 #include "prtbake/runtime.h"
 
 namespace prtbake {
@@ -121,6 +122,20 @@ struct MeshPreviewResult {
 // radiance, UsageError for bad options.
 MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const TransportCoeffs& transport,
                                     const ShCoeffs& radiance, const MeshPreviewOptions& options);
+
+// --- prefiltered chain preview ---
+//
+// Every level as a lat-long panel (OpenEXR LatLongMap axes, +Y up; panelWidth × panelWidth/2)
+// side by side, labelled with its roughness and size, and below them six spheres from mirror
+// to rough (r = 0, 0.2, …, 1) seen from +Z, shaded as an engine shades with the split sum:
+// L = P(R, r) · (f0 A + B)(N·V, r) with f0 = 1 (a white metal), P read trilinearly from this
+// chain (between the two levels whose roughness brackets r) and A, B from prtbake's own GGX LUT
+// (32², 256 samples); Charlie lobes use the LUT's cloth table C instead of A + B, lambertian
+// chains show P(N) (albedo 1). R = reflect(−V, N), V = +Z.
+LinearImage renderPrefilterPreview(Runtime& rt, const PrefilterResult& chain, int panelWidth);
+// Renders it and writes the PNG (tone map: exposure 0), stating what it shows.
+void writePrefilterPreviewPng(const std::string& path, Runtime& rt, const PrefilterResult& chain, int panelWidth,
+                              const std::string& source);
 
 // Draws `text` with a small vector font into a linear image at (x, y), scaled.
 void drawText(LinearImage& image, int x, int y, const std::string& text, float value, int scale = 1);
