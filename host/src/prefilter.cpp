@@ -2,9 +2,11 @@
 #include "prtbake/prefilter.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <thread>
 
 #include "kernel_options.h"
 #include "prefilter_detail.h"
@@ -209,24 +211,44 @@ class CutRunner {
              size_t* unresolved) {
     const int wiPerLeaf = (tt.leaf * tt.leaf + vw_ - 1) / vw_;
     cl::Buffer offsets = rt_.upload(tt.offset);
+    // The six faces' cuts on the host's cores at once (each a read-only walk of the trees:
+    // at 256² the cut is most of a level's time), then one launch per face.
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<detail::TileCuts> cuts(6);
+    {
+      std::atomic<int> next{0};
+      auto work = [&] {
+        for (int face; (face = next++) < 6;) {
+          const std::vector<int>& part = leaves[size_t(face)];
+          if (part.empty()) continue;
+          // Every leaf of the face: cut every tile (an empty list); a subset: only the tiles above it.
+          const bool whole = part.size() == allLeaves(tt).size();
+          cuts[size_t(face)] = detail::buildTileCuts(tree_, scale, tt, face, whole ? std::vector<int>{} : part);
+        }
+      };
+      const unsigned threads = std::min(6u, std::max(1u, std::thread::hardware_concurrency()));
+      std::vector<std::thread> pool;
+      for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
+      work();
+      for (std::thread& t : pool) t.join();
+    }
+    *cutSeconds += secondsSince(t0);
+    const auto t1 = std::chrono::steady_clock::now();
     size_t summed = 0;
+    std::vector<cl::Buffer> keep;  // each launch's lists, alive until the queue finishes
     for (int face = 0; face < 6; ++face) {
       const std::vector<int>& part = leaves[size_t(face)];
       if (part.empty()) continue;
-      const auto t0 = std::chrono::steady_clock::now();
-      // Every leaf of the face: cut every tile (an empty list); a subset: only the tiles above it.
-      const bool whole = part.size() == allLeaves(tt).size();
-      const detail::TileCuts cuts = detail::buildTileCuts(tree_, scale, tt, face, whole ? std::vector<int>{} : part);
-      *cutSeconds += secondsSince(t0);
-      if (unresolved) *unresolved += cuts.unresolved;
+      const detail::TileCuts& c = cuts[size_t(face)];
+      if (unresolved) *unresolved += c.unresolved;
       for (int leaf : part)
         for (int k = 0; k < tt.levels; ++k) {
           const uint32_t id = tt.id(k, face, (leaf / tt.side(0)) >> k, (leaf % tt.side(0)) >> k);
-          for (uint32_t e = cuts.start[id]; e < cuts.start[id + 1]; ++e)
-            summed += (size_t(1) << (2 * ((cuts.bins[e] >> 23) & 15u))) * size_t(tt.leaf * tt.leaf);
+          for (uint32_t e = c.start[id]; e < c.start[id + 1]; ++e)
+            summed += (size_t(1) << (2 * ((c.bins[e] >> 23) & 15u))) * size_t(tt.leaf * tt.leaf);
         }
-      const auto t1 = std::chrono::steady_clock::now();
-      cl::Buffer start = rt_.upload(cuts.start), bins = rt_.upload(cuts.bins), ids = rt_.upload(part);
+      cl::Buffer start = rt_.upload(c.start), bins = rt_.upload(c.bins), ids = rt_.upload(part);
+      keep.insert(keep.end(), {start, bins, ids});
       int a = 0;
       kernel_.setArg(a++, flux_);
       kernel_.setArg(a++, dirL_);
@@ -248,9 +270,9 @@ class CutRunner {
       kernel_.setArg(a++, out);
       rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(part.size() * size_t(wiPerLeaf)),
                                        cl::NDRange(size_t(wiPerLeaf)));
-      rt_.queue().finish();
-      *kernelSeconds += secondsSince(t1);
     }
+    rt_.queue().finish();
+    *kernelSeconds += secondsSince(t1);
     return summed;
   }
 
