@@ -94,7 +94,7 @@ static std::string measureCommands() {
   auto record = [&](const std::string& input, const std::string& label) {
     const std::string cache = "/tmp/prtbake-bench-env-cache";
     const std::vector<std::string> args = {cli, "env", input, "-o", out, "--quiet", "--device", "cpu"};
-    const std::vector<std::string> env = {"POCL_CACHE_DIR=" + cache, "PRTBAKE_CACHE_DIR=" + cache};
+    const std::vector<std::string> env = {"POCL_CACHE_DIR=" + cache};
     std::system(("rm -rf " + cache).c_str());
     const Run coldRun = runCommand(args, env);  // builds the programs
     std::vector<double> wall, peak;
@@ -180,8 +180,6 @@ int main(int argc, char** argv) {
     json += line;
     first = false;
   }
-  json += "\n  ]";
-
   json += "\n  ]";
   if (kernelOnly) {
     std::printf("--kernel-only: whole-command timing skipped, no results written\n");

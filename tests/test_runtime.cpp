@@ -69,55 +69,37 @@ TEST_CASE("Programs are cached per (file, options)", "[runtime]") {
   REQUIRE(c() != a());
 }
 
-namespace {
-// Runs add_index (x[i] += i) on a fresh Runtime over {0.5, 0.5, 0.5, 0.5}.
-std::vector<float> runAddIndex() {
-  Runtime rt("cpu");
-  std::vector<float> x(4, 0.5f);
-  cl::Buffer b(rt.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, x.size() * 4, x.data());
-  cl::Kernel k = rt.kernel("cached.cl", "add_index");
-  k.setArg(0, b);
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(x.size()));
-  rt.queue().enqueueReadBuffer(b, CL_TRUE, 0, x.size() * 4, x.data());
-  return x;
-}
-
-std::vector<std::string> cacheEntries(const std::string& dir) {
-  std::vector<std::string> out;
-  std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
-    if (e.path().extension() == ".bin") out.push_back(e.path().string());
-  return out;
-}
-}  // namespace
-
-TEST_CASE("Program binaries are cached across runtimes, and a damaged entry is rebuilt", "[runtime]") {
-  const std::string dir = test::tempDir("programcache");
-  std::ofstream(dir + "/cached.cl") << "__kernel void add_index(__global float* x) { x[get_global_id(0)] += (float)get_global_id(0); }\n";
-  const std::string cache = dir + "/cache";
-  ::setenv("PRTBAKE_KERNEL_DIR", dir.c_str(), 1);
-  ::setenv("PRTBAKE_CACHE_DIR", cache.c_str(), 1);
-  const std::vector<float> expect{0.5f, 1.5f, 2.5f, 3.5f};
-  CHECK(runAddIndex() == expect);  // built from source, binary stored
-  const auto entries = cacheEntries(cache);
-  REQUIRE(entries.size() == 1);
-  CHECK(runAddIndex() == expect);  // from the stored binary
-  CHECK(cacheEntries(cache).size() == 1);
-  std::ofstream(entries[0], std::ios::binary | std::ios::trunc) << "not a device binary";
-  CHECK(runAddIndex() == expect);  // the damaged entry is ignored ...
-  CHECK(readFile(entries[0]) != "not a device binary");  // ... and replaced
-  // A changed source is a different entry.
-  std::ofstream(dir + "/cached.cl") << "__kernel void add_index(__global float* x) { x[get_global_id(0)] += 2.0f * (float)get_global_id(0); }\n";
-  CHECK(runAddIndex() == std::vector<float>{0.5f, 2.5f, 4.5f, 6.5f});
-  CHECK(cacheEntries(cache).size() == 2);
-  // "off" disables the cache: a third source builds, and nothing is stored.
-  ::setenv("PRTBAKE_CACHE_DIR", "off", 1);
-  std::ofstream(dir + "/cached.cl") << "__kernel void add_index(__global float* x) { x[get_global_id(0)] += 3.0f * (float)get_global_id(0); }\n";
-  CHECK(runAddIndex() == std::vector<float>{0.5f, 3.5f, 6.5f, 9.5f});
-  CHECK(cacheEntries(cache).size() == 2);
-  CHECK_FALSE(std::filesystem::exists("off/"));  // not taken as a directory name
-  ::unsetenv("PRTBAKE_CACHE_DIR");
-  ::unsetenv("PRTBAKE_KERNEL_DIR");
+TEST_CASE("A shared, empty kernel cache: processes that start at once all build, agree and fill it", "[runtime][cli]") {
+  // A cluster shares POCL_CACHE_DIR (README): four processes start together on an empty
+  // cache, each builds the table's program and writes PoCL's entries (PoCL writes each
+  // through a temporary file and a rename). All must succeed with the same bytes, and a
+  // later process must find the entries (no new ones) and agree too.
+  const std::string dir = test::tempDir("sharedcache"), cache = dir + "/pocl";
+  auto q = [](const std::string& s) { return "'" + s + "'"; };
+  std::string cmd = "cd " + q(dir) + " && for i in 1 2 3 4 5; do mkdir -p p$i; done && for i in 1 2 3 4; do (POCL_CACHE_DIR=" + q(cache) +
+                    " '" + PRTBAKE_CLI_PATH + "' lut --size 16 --samples 256 -o p$i/t.exr --quiet; echo $? > rc$i) & done; wait";
+  REQUIRE(test::runShell(cmd).exitCode == 0);
+  const std::string first = readFile(dir + "/p1/t.exr");
+  REQUIRE(!first.empty());
+  for (int i = 1; i <= 4; ++i) {
+    INFO("process " << i);
+    CHECK(readFile(dir + "/rc" + std::to_string(i)) == "0\n");
+    CHECK(readFile(dir + "/p" + std::to_string(i) + "/t.exr") == first);
+  }
+  auto entries = [&] {
+    size_t n = 0;
+    // PoCL also leaves an empty tempfile_* in the cache's root per process: not an entry.
+    for (const auto& e : std::filesystem::recursive_directory_iterator(cache))
+      n += e.is_regular_file() && e.path().filename().string().rfind("tempfile_", 0) != 0 ? 1 : 0;
+    return n;
+  };
+  const size_t filled = entries();
+  CHECK(filled > 0);
+  const auto r = test::runShell("cd " + q(dir) + " && POCL_CACHE_DIR=" + q(cache) + " '" +
+                                PRTBAKE_CLI_PATH + "' lut --size 16 --samples 256 -o p5/t.exr --quiet");
+  CHECK(r.exitCode == 0);
+  CHECK(readFile(dir + "/p5/t.exr") == first);
+  CHECK(entries() == filled);
 }
 
 TEST_CASE("SHA-256 matches the FIPS 180-4 examples", "[hash]") {
