@@ -197,8 +197,12 @@ namespace {
 // huge pages; mary.obj transport 1.85 s, 1.50 s). glibc backs malloc's heap with
 // transparent huge pages when its tunable glibc.malloc.hugetlb=1 is set at start-up, so the
 // process starts itself again once with the tunable added. Nothing changes where huge
-// pages are off, and a failed exec simply continues here.
+// pages are off (or under AddressSanitizer, whose allocator replaces glibc's), and a
+// failed exec simply continues here.
 void useHugePagesForMalloc(char** argv) {
+#if defined(__SANITIZE_ADDRESS__)
+  return;  // AddressSanitizer's allocator replaces malloc: the tunable would only cost a start-up
+#endif
   const char* tunables = std::getenv("GLIBC_TUNABLES");
   const std::string current = tunables ? tunables : "";
   if (current.find("glibc.malloc.hugetlb") != std::string::npos || std::getenv("PRTBAKE_NO_HUGETLB")) return;

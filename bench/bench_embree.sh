@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# prtbake transport beside Embree 3 on the same rays, in one run: the torus knot of the
+# transport benchmark (102,400 vertices, 204,800 triangles), shadowed, order 3, 1024 cosine
+# rays per vertex. Whole commands (wall and CPU time from /usr/bin/time), the coefficients
+# compared (mean and max |ΔT_00|), prtbake rerun for bit-identity, and the cost of an
+# interreflection bounce against the direct term. Writes bench/results/embree.md.
+#   bash bench/bench_embree.sh [BUILD]     (BUILD: default build/, with bench_embree built)
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+BUILD=${1:-$ROOT/build}
+OUT=$ROOT/bench/results/embree.md
+export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$BUILD/pocl-cache}
+work=$(mktemp -d /tmp/prtbake-bench-embree.XXXXXX)
+trap 'rm -rf "$work"' EXIT
+PRTBAKE=$BUILD/prtbake
+EMBREE=$BUILD/bench/bench_embree
+"$EMBREE" --write-knot "$work/knot.obj"
+timed() {  # label, command...: prints "label wall_s cpu_s peak_MiB"
+  local label=$1; shift
+  /usr/bin/time -f "$label %e %U %S %M" -o "$work/time.txt" "$@" > "$work/out.txt" 2>&1 || { cat "$work/out.txt" >&2; exit 1; }
+  awk '{printf "%s %.2f %.2f %.0f\n", $1, $2, $3 + $4, $5 / 1024}' "$work/time.txt"
+}
+# Warm-up: program caches and the file cache.
+"$PRTBAKE" transport "$work/knot.obj" -o "$work/warm.npy" --samples 64 --quiet
+results=()
+for run in 1 2 3; do
+  results+=("$(timed "prtbake#$run" "$PRTBAKE" transport "$work/knot.obj" -o "$work/p$run.npy" --samples 1024 --quiet)")
+  results+=("$(timed "embree#$run" "$EMBREE" "$work/knot.obj" "$work/e$run.npy" --samples 1024)")
+done
+results+=("$(timed "prtbake-1-bounce" "$PRTBAKE" transport "$work/knot.obj" -o "$work/ir.npy" --samples 1024 --mode interreflected --bounces 1 --bounce-tolerance 0 --quiet)")
+compare=$(python3 - "$work/p1.npy" "$work/e1.npy" "$work/p2.npy" "$work/p3.npy" <<'PY'
+import struct, sys
+def load(path):
+    b = open(path, 'rb').read()
+    n = struct.unpack('<H', b[8:10])[0]
+    header = b[10:10 + n].decode()
+    shape = tuple(int(x) for x in header.split('(')[1].split(')')[0].split(',') if x.strip())
+    data = b[10 + n:]
+    return shape, struct.unpack('<%df' % (len(data) // 4), data)
+sp, p = load(sys.argv[1]); se, e = load(sys.argv[2])
+assert sp == se, (sp, se)
+stride = 1
+for s in sp[1:]: stride *= s
+d = [abs(p[i] - e[i]) for i in range(0, len(p), stride)]
+same = all(open(sys.argv[1], 'rb').read() == open(f, 'rb').read() for f in sys.argv[3:])
+print("shape %s; T_00 mean |prtbake - embree| %.2e, max %.2e; prtbake reruns bit-identical: %s" % (sp, sum(d) / len(d), max(d), "yes" if same else "NO"))
+PY
+)
+{
+  echo "# Transport beside Embree 3: the knot, shadowed, order 3, 1024 rays per vertex"
+  echo
+  echo "bench/bench_embree.sh, $(date -u +%Y-%m-%d), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)); Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo '?') (rtcOccluded16, one thread per core), prtbake on PoCL's CPU device; warm program caches; three alternating runs of each."
+  echo
+  echo "| run | wall [s] | CPU [s] | peak [MiB] |"
+  echo "|---|---|---|---|"
+  for r in "${results[@]}"; do set -- $r; echo "| $1 | $2 | $3 | $4 |"; done
+  echo
+  echo "Coefficients: $compare."
+  echo
+  echo "The bounce: \`prtbake-1-bounce\` is the interreflected command with one bounce (the same 1024 rays per vertex for the direct term and for the bounce); its cost beyond the direct term is its time minus the shadowed command's."
+} > "$OUT"
+cat "$OUT"
