@@ -3,6 +3,7 @@
 #pragma once
 
 #include "prtbake/preview.h"
+#include "prtbake/sh_rotate.h"
 
 namespace prtbake::detail {
 
@@ -15,5 +16,9 @@ struct Camera {
 
 // The camera of MeshPreviewOptions (orbit, field of view, distance that frames the bounds).
 Camera frameCamera(const Mesh& mesh, const MeshPreviewOptions& options);
+
+// Fills the pixels no triangle covers (r.hitTriangle < 0) from `background`, rotated like
+// the lighting: L'(d) = L(Rᵀ d). Sets r.backgroundSeconds.
+void fillBackground(MeshPreviewResult& r, const Camera& cam, const Rotation& rot, const EnvMap& background);
 
 }  // namespace prtbake::detail

@@ -170,26 +170,28 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   rt.queue().enqueueReadBuffer(hitDev, CL_TRUE, 0, r.hitTriangle.size() * 4, r.hitTriangle.data());
   r.kernelSeconds = since(tKernel);
 
-  if (!shBackground) {
-    // The map, rotated like the lighting: L'(d) = L(Rᵀ d).
-    const auto tBg = Clock::now();
-    for (int y = 0; y < o.height; ++y)
-      for (int x = 0; x < o.width; ++x) {
-        const size_t p = size_t(y) * size_t(o.width) + size_t(x);
-        if (r.hitTriangle[p] >= 0) continue;
-        const double px = 2 * (x + 0.5) / o.width - 1, py = 1 - 2 * (y + 0.5) / o.height;
-        double d[3], n = 0;
-        for (int j = 0; j < 3; ++j) d[j] = cam.forward[j] + px * cam.right[j] + py * cam.up[j], n += d[j] * d[j];
-        n = std::sqrt(n);
-        const auto& m = rot.m;
-        const double dm[3] = {(m[0] * d[0] + m[3] * d[1] + m[6] * d[2]) / n, (m[1] * d[0] + m[4] * d[1] + m[7] * d[2]) / n,
-                              (m[2] * d[0] + m[5] * d[1] + m[8] * d[2]) / n};
-        const Rgb v = sampleEnvironment(*o.background, dm);
-        for (int c = 0; c < 3; ++c) r.image.rgb[3 * p + size_t(c)] = float(v[size_t(c)]);
-      }
-    r.backgroundSeconds = since(tBg);
-  }
+  if (!shBackground) detail::fillBackground(r, cam, rot, *o.background);
   return r;
+}
+
+void detail::fillBackground(MeshPreviewResult& r, const Camera& cam, const Rotation& rot, const EnvMap& background) {
+  const auto tBg = Clock::now();
+  const int width = r.image.width, height = r.image.height;
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const size_t p = size_t(y) * size_t(width) + size_t(x);
+      if (r.hitTriangle[p] >= 0) continue;
+      const double px = 2 * (x + 0.5) / width - 1, py = 1 - 2 * (y + 0.5) / height;
+      double d[3], n = 0;
+      for (int j = 0; j < 3; ++j) d[j] = cam.forward[j] + px * cam.right[j] + py * cam.up[j], n += d[j] * d[j];
+      n = std::sqrt(n);
+      const auto& m = rot.m;
+      const double dm[3] = {(m[0] * d[0] + m[3] * d[1] + m[6] * d[2]) / n, (m[1] * d[0] + m[4] * d[1] + m[7] * d[2]) / n,
+                            (m[2] * d[0] + m[5] * d[1] + m[8] * d[2]) / n};
+      const Rgb v = sampleEnvironment(background, dm);
+      for (int c = 0; c < 3; ++c) r.image.rgb[3 * p + size_t(c)] = float(v[size_t(c)]);
+    }
+  r.backgroundSeconds = since(tBg);
 }
 
 }  // namespace prtbake
