@@ -11,6 +11,7 @@
 #include "lut_sampling.clh"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
+#include "radical_inverse.h"
 #include "tolerance.h"
 
 namespace prtbake {
@@ -22,16 +23,6 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Radical inverse in base 2 of k (van der Corput), exact in double for k < 2^32.
-double radicalInverse2(uint32_t k) {
-  k = (k << 16) | (k >> 16);
-  k = ((k & 0x00ff00ffu) << 8) | ((k & 0xff00ff00u) >> 8);
-  k = ((k & 0x0f0f0f0fu) << 4) | ((k & 0xf0f0f0f0u) >> 4);
-  k = ((k & 0x33333333u) << 2) | ((k & 0xccccccccu) >> 2);
-  k = ((k & 0x55555555u) << 1) | ((k & 0xaaaaaaaau) >> 1);
-  return double(k) * (1.0 / 4294967296.0);
-}
-
 // The per-sample table of lut_sampling.clh for points first … first + count − 1 of the
 // `samples`-point Hammersley set, in double then rounded to float.
 std::vector<float> sampleTable(int samples, int first, int count, int nPad) {
@@ -40,7 +31,7 @@ std::vector<float> sampleTable(int samples, int first, int count, int nPad) {
   for (int k = 0; k < nPad; ++k) {
     // Padding repeats a harmless point (mask 0) so no lane computes NaN.
     const int kk = first + (k < count ? k : 0);
-    const double u1 = (kk + 0.5) / samples, u2 = radicalInverse2(uint32_t(kk));
+    const double u1 = (kk + 0.5) / samples, u2 = detail::radicalInverse2(uint32_t(kk));
     const double r = std::sqrt(u1), cphi = std::cos(2 * kPi * u2), sphi = std::sin(2 * kPi * u2);
     const double t1 = r * cphi;
     at(LUT_TAB_T1SQ, k) = float(t1 * t1);

@@ -9,6 +9,7 @@
 
 #include "kernel_options.h"
 #include "prefilter_detail.h"
+#include "radical_inverse.h"
 #include "prtbake/error.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/runtime.h"
@@ -224,17 +225,6 @@ std::vector<std::vector<float>> boxChain(const std::vector<float>& base, int n) 
   return chain;
 }
 
-namespace {
-double radicalInverse2(uint32_t k) {
-  k = (k << 16) | (k >> 16);
-  k = ((k & 0x00ff00ffu) << 8) | ((k & 0xff00ff00u) >> 8);
-  k = ((k & 0x0f0f0f0fu) << 4) | ((k & 0xf0f0f0f0u) >> 4);
-  k = ((k & 0x33333333u) << 2) | ((k & 0xccccccccu) >> 2);
-  k = ((k & 0x55555555u) << 1) | ((k & 0xaaaaaaaau) >> 1);
-  return double(k) * (1.0 / 4294967296.0);
-}
-}  // namespace
-
 // Filament's CubemapIBL::roughnessFilter (and the Khronos sampler's filterColor): GGX half
 // vectors from the Hammersley set, L = reflect(−N, H) with N = V = R, weight N·L, read at
 // lod = log4(Ω_s/Ω_p) + log4(K), K = 4, Ω_s = 1/(S pdf), pdf = D/4, Ω_p = 4π/(6 n0²).
@@ -246,7 +236,7 @@ std::vector<float> prefilterSampledLevel(Runtime& rt, const std::vector<std::vec
   std::vector<float> lods(static_cast<size_t>(samples));
   const double a2 = alpha * alpha, omegaP = 4 * kPi / (6.0 * n0 * n0);
   for (int i = 0; i < samples; ++i) {
-    const double u1 = double(i) / samples, u2 = radicalInverse2(uint32_t(i));
+    const double u1 = double(i) / samples, u2 = detail::radicalInverse2(uint32_t(i));
     const double ct = std::sqrt((1 - u2) / (1 + (a2 - 1) * u2)), st = std::sqrt(std::max(0.0, 1 - ct * ct));
     const double phi = 2 * kPi * u1;
     const double l[3] = {2 * ct * st * std::cos(phi), 2 * ct * st * std::sin(phi), 2 * ct * ct - 1};

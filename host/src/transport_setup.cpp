@@ -8,6 +8,7 @@
 
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
+#include "radical_inverse.h"
 
 namespace prtbake {
 namespace {
@@ -20,15 +21,6 @@ uint64_t splitmix64(uint64_t x) {
   return x ^ (x >> 31);
 }
 double unitFromBits(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }
-
-double radicalInverse2(uint32_t i) {
-  i = (i << 16) | (i >> 16);
-  i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
-  i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
-  i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
-  i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
-  return double(i) * 0x1.0p-32;
-}
 
 // Orders a direction set along a Morton curve over the projected disk (x, y), so that
 // consecutive samples (the packets of the vector kernel) point in nearby directions.
@@ -108,7 +100,7 @@ namespace {
 std::array<double, 3> directionAt(int i, int samples, uint64_t seed, TransportSampler sampler) {
   const double s1 = unitFromBits(splitmix64(seed * 2 + 1)), s2 = unitFromBits(splitmix64(seed * 2 + 2));
   const int m = int(std::sqrt(double(std::max(samples, 0))));
-  double u1 = (i + 0.5) / samples + s1, u2 = radicalInverse2(uint32_t(i)) + s2;
+  double u1 = (i + 0.5) / samples + s1, u2 = detail::radicalInverse2(uint32_t(i)) + s2;
   if (sampler != TransportSampler::Hammersley) {
     const uint64_t h = splitmix64(seed * 0x9E3779B97F4A7C15ull + 2 * uint64_t(i) + 7);
     const double j1 = unitFromBits(h), j2 = unitFromBits(splitmix64(h));
