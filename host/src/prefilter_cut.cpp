@@ -98,8 +98,11 @@ double lobeSmooth(PrefilterLobe lobe, double alpha, double e) {
       return mu * w * w;
     }
     case PrefilterLobe::Charlie: {
-      if (mu <= 0 || e <= 0) return 0.0;
-      return std::exp(std::log(mu) + std::log(0.5 * e) / (2.0 * alpha) - charlieLogPeak(alpha));
+      // Continued past the horizon like the others (μ < 0 there): cut off at μ = 0, the
+      // finite differences of the curvature table saw a kink of slope ~1/step (H ~ 4e7) and
+      // every bin reaching the horizon was opened to the finest level (174k bins per texel).
+      if (e <= 0) return 0.0;
+      return mu * std::exp(std::log(0.5 * e) / (2.0 * alpha) - charlieLogPeak(alpha));
     }
     case PrefilterLobe::Lambertian: return mu;
   }
