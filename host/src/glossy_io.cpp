@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "png_chunks.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
@@ -366,22 +367,6 @@ std::string glossySidecarBytes(const std::string& inputPath, const Mesh& mesh, c
 
 namespace {
 
-uint32_t crc32(const std::string& data) {
-  static uint32_t table[256];
-  static const bool init = [] {
-    for (uint32_t i = 0; i < 256; ++i) {
-      uint32_t c = i;
-      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-      table[i] = c;
-    }
-    return true;
-  }();
-  (void)init;
-  uint32_t c = 0xFFFFFFFFu;
-  for (unsigned char b : data) c = table[(c ^ b) & 0xff] ^ (c >> 8);
-  return c ^ 0xFFFFFFFFu;
-}
-
 void put16(std::string& s, uint32_t v) {
   s += char(v & 0xff);
   s += char((v >> 8) & 0xff);
@@ -399,7 +384,7 @@ std::string zipStored(const std::vector<std::pair<std::string, std::string>>& me
   std::string out, central;
   for (const auto& [name, data] : members) {
     if (data.size() >= 0xFFFFFFFFull) throw OutputError(name, "a .npz member of 4 GiB or more (zip64) is not supported");
-    const uint32_t crc = crc32(data), offset = uint32_t(out.size());
+    const uint32_t crc = detail::crc32(reinterpret_cast<const unsigned char*>(data.data()), data.size()) ^ 0xFFFFFFFFu, offset = uint32_t(out.size());
     put32(out, 0x04034b50u);
     put16(out, 20), put16(out, 0), put16(out, 0), put16(out, 0), put16(out, 0x21);  // version, flags, stored, time, date
     put32(out, crc), put32(out, uint32_t(data.size())), put32(out, uint32_t(data.size()));

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "png_chunks.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
@@ -21,18 +22,6 @@ void fillRect(LinearImage& img, int x0, int y0, int x1, int y1, float v) {
   for (int y = y0; y < y1; ++y)
     for (int x = x0; x < x1; ++x)
       for (int c = 0; c < 3; ++c) img.rgb[3 * (size_t(y) * size_t(img.width) + size_t(x)) + size_t(c)] = v;
-}
-
-uint32_t crc32(const unsigned char* p, size_t n, uint32_t crc = 0xffffffffu) {
-  for (size_t i = 0; i < n; ++i) {
-    crc ^= p[i];
-    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-  }
-  return crc;
-}
-
-void appendBE(std::string& s, uint32_t v) {
-  for (int k = 3; k >= 0; --k) s.push_back(char((v >> (8 * k)) & 0xff));
 }
 
 void collect(void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<char*>(data), size_t(size)); }
@@ -166,12 +155,7 @@ void writePreviewPng(const std::string& path, const LinearImage& image, const To
       {"ToneMap", "linear x 2^" + std::to_string(toneMap.exposureStops) + " (exposure in stops), clamped to [0,1], sRGB encoded"}};
   all.insert(all.end(), text.begin(), text.end());
   std::string chunks;
-  for (const auto& [k, v] : all) {
-    std::string body = "tEXt" + k.substr(0, 79) + std::string(1, '\0') + v;
-    appendBE(chunks, uint32_t(body.size() - 4));
-    chunks += body;
-    appendBE(chunks, crc32(reinterpret_cast<const unsigned char*>(body.data()), body.size()) ^ 0xffffffffu);
-  }
+  for (const auto& [k, v] : all) detail::appendPngChunk(chunks, "tEXt", k.substr(0, 79) + std::string(1, '\0') + v);
   png.insert(33, chunks);
   writeFileAtomic(path, png);
 }

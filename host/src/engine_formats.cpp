@@ -1,0 +1,216 @@
+// Engine conventions (prtbake/engine.h): the SH conversions and the engine file formats
+// (three.js Object JSON, Filament sh.txt and KTX 1.1 cubes, 16-bit PNG tables).
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "png_chunks.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/engine.h"
+#include "prtbake/error.h"
+#include "prtbake/sh.h"
+
+// The deflate of the system's stb library (stb_image_write.c), which its header declares only
+// in the implementation part.
+extern "C" unsigned char* stbi_zlib_compress(unsigned char* data, int data_len, int* out_len, int quality);
+
+namespace prtbake {
+namespace {
+
+const double kPi = 3.14159265358979323846;
+constexpr int kEngineShCount = 9;
+
+// c_i of the first 9 coefficients (missing ones are 0), channel-minor.
+EngineSh radianceOf(const ShCoeffs& c) {
+  if (c.quantity != ShQuantity::Radiance) throw UsageError("sh", "engine exports take radiance coefficients");
+  EngineSh out{};
+  for (int i = 0; i < kEngineShCount && size_t(i) < c.rgb.size(); ++i)
+    for (int k = 0; k < 3; ++k) out[size_t(3 * i + k)] = c.rgb[size_t(i)][size_t(k)];
+  return out;
+}
+
+int bandOf(int i) { return i == 0 ? 0 : i < 4 ? 1 : 2; }
+
+void put32(std::string& s, uint32_t v) { s.append(reinterpret_cast<const char*>(&v), 4); }
+
+// An unsigned float of `mantissaBits` mantissa bits and a 5-bit exponent (bias 15), rounded to
+// nearest: the channels of GL_R11F_G11F_B10F.
+uint32_t unsignedSmallFloat(float v, int mantissaBits, bool* clamped) {
+  const uint32_t maxBits = (30u << mantissaBits) | ((1u << mantissaBits) - 1);  // exponent 30, mantissa all ones
+  if (!(v > 0)) return 0;                                                         // negatives, zero and NaN
+  const double maxValue = std::ldexp(2.0 - std::ldexp(1.0, -mantissaBits), 15);
+  if (v >= maxValue) {
+    if (v > maxValue && clamped) *clamped = true;
+    return maxBits;
+  }
+  int e = 0;
+  const double m = std::frexp(double(v), &e);  // v = m · 2^e, m ∈ [0.5, 1)
+  int exponent = e - 1 + 15;
+  uint32_t mantissa;
+  if (exponent <= 0) {  // denormal: v = mantissa / 2^bits · 2^−14
+    exponent = 0;
+    mantissa = uint32_t(std::nearbyint(std::ldexp(double(v), 14 + mantissaBits)));
+  } else {
+    mantissa = uint32_t(std::nearbyint((2 * m - 1) * double(1u << mantissaBits)));
+  }
+  if (mantissa >> mantissaBits) mantissa = 0, ++exponent;  // rounded up into the next binade
+  return std::min(maxBits, (uint32_t(exponent) << mantissaBits) | mantissa);
+}
+
+}  // namespace
+
+EngineSh threejsSh(const ShCoeffs& radiance) {
+  EngineSh k = radianceOf(radiance);
+  for (int i : {1, 3, 5, 7})
+    for (int c = 0; c < 3; ++c) k[size_t(3 * i + c)] = -k[size_t(3 * i + c)];
+  return k;
+}
+
+EngineSh gltfIrradianceSh(const ShCoeffs& radiance) {
+  EngineSh e = radianceOf(radiance);
+  for (int i = 0; i < kEngineShCount; ++i)
+    for (int c = 0; c < 3; ++c) e[size_t(3 * i + c)] *= clampedCosineFactor(bandOf(i));
+  return e;
+}
+
+EngineSh filamentSh(const ShCoeffs& radiance) {
+  // K_i: Y_i(n) = K_i · P_i(n) with P = (1, y, z, x, xy, yz, 3z² − 1, xz, x² − y²), the
+  // polynomial Filament's shader evaluates; the signs are the Condon–Shortley phase.
+  const double s = 1.0 / std::sqrt(kPi);
+  const double K[kEngineShCount] = {0.5 * s,
+                                    -std::sqrt(3.0) / 2 * s,
+                                    std::sqrt(3.0) / 2 * s,
+                                    -std::sqrt(3.0) / 2 * s,
+                                    std::sqrt(15.0) / 2 * s,
+                                    -std::sqrt(15.0) / 2 * s,
+                                    std::sqrt(5.0) / 4 * s,
+                                    -std::sqrt(15.0) / 2 * s,
+                                    std::sqrt(15.0) / 4 * s};
+  EngineSh f = gltfIrradianceSh(radiance);
+  for (int i = 0; i < kEngineShCount; ++i)
+    for (int c = 0; c < 3; ++c) f[size_t(3 * i + c)] *= K[i] / kPi;
+  return f;
+}
+
+std::string threejsLightProbeJson(const EngineSh& sh, const std::string& extra) {
+  nlohmann::json j;
+  j["metadata"] = {{"version", 4.7}, {"type", "Object"}, {"generator", std::string("prtbake ") + version()}};
+  j["object"] = {{"type", "LightProbe"},
+                 {"name", "prtbake"},
+                 {"layers", 1},
+                 {"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}},
+                 {"up", {0, 1, 0}},
+                 {"color", 0xffffff},
+                 {"intensity", 1},
+                 {"sh", std::vector<double>(sh.begin(), sh.end())}};
+  if (!extra.empty()) j["object"]["userData"] = nlohmann::json::parse(extra);
+  return j.dump(2) + "\n";
+}
+
+std::string filamentShText(const EngineSh& sh) {
+  std::string out;
+  char line[160];
+  for (int l = 0, i = 0; l < 3; ++l)
+    for (int m = -l; m <= l; ++m, ++i) {
+      std::snprintf(line, sizeof line, "(%18.15f, %18.15f, %18.15f); // L%d%d, irradiance, pre-scaled base\n",
+                    sh[size_t(3 * i)], sh[size_t(3 * i + 1)], sh[size_t(3 * i + 2)], l, m);
+      out += line;
+    }
+  return out;
+}
+
+uint32_t packR11G11B10(float r, float g, float b, bool* clamped) {
+  return unsignedSmallFloat(r, 6, clamped) | (unsignedSmallFloat(g, 6, clamped) << 11) |
+         (unsignedSmallFloat(b, 5, clamped) << 22);
+}
+
+std::string filamentKtx1Bytes(const std::vector<CubeLevel>& levels, const EngineSh* sh, long long* clamped) {
+  if (levels.empty()) throw OutputError("ktx", "nothing to write");
+  constexpr uint32_t kR11fG11fB10f = 0x8C3A, kRgb = 0x1907;
+  std::string out;
+  const unsigned char id[12] = {0xAB, 'K', 'T', 'X', ' ', '1', '1', 0xBB, '\r', '\n', 0x1A, '\n'};
+  out.append(reinterpret_cast<const char*>(id), 12);
+  std::string kvd;
+  auto keyValue = [&kvd](const std::string& key, const std::string& value) {
+    const std::string kv = key + std::string(1, '\0') + value + std::string(1, '\0');
+    put32(kvd, uint32_t(kv.size()));
+    kvd += kv;
+    while (kvd.size() % 4) kvd.push_back('\0');
+  };
+  keyValue("KTXwriter", std::string("prtbake ") + version());
+  if (sh) {
+    // Filament's createIblFromKtx1 reads "sh" with value.split(/\s/, 27).map(parseFloat):
+    // single separators, 9 lines of "r g b".
+    std::string text;
+    char num[40];
+    for (int i = 0; i < 27; ++i) {
+      std::snprintf(num, sizeof num, "%.9g", (*sh)[size_t(i)]);
+      text += num;
+      text += (i % 3 == 2) ? "\n" : " ";
+    }
+    keyValue("sh", text);
+  }
+  put32(out, 0x04030201);              // endianness
+  put32(out, kR11fG11fB10f);           // glType: cmgen's value, which Filament's Ktx1Reader maps to UINT_10F_11F_11F_REV
+  put32(out, 1);                       // glTypeSize
+  put32(out, kRgb);                    // glFormat
+  put32(out, kR11fG11fB10f);           // glInternalFormat
+  put32(out, kRgb);                    // glBaseInternalFormat
+  put32(out, uint32_t(levels[0].size));  // pixelWidth
+  put32(out, uint32_t(levels[0].size));  // pixelHeight
+  put32(out, 0);                       // pixelDepth
+  put32(out, 0);                       // numberOfArrayElements
+  put32(out, 6);                       // numberOfFaces
+  put32(out, uint32_t(levels.size()));   // numberOfMipmapLevels
+  put32(out, uint32_t(kvd.size()));
+  out += kvd;
+  long long over = 0;
+  for (const CubeLevel& l : levels) {
+    const size_t faceTexels = size_t(l.size) * size_t(l.size);
+    if (!l.rgb || l.rgb->size() != 6 * faceTexels * 3) throw OutputError("ktx", "a level has the wrong number of texels");
+    put32(out, uint32_t(faceTexels * 4));  // imageSize: one face (non-array cube)
+    for (size_t t = 0; t < 6 * faceTexels; ++t) {
+      bool c = false;
+      put32(out, packR11G11B10((*l.rgb)[3 * t], (*l.rgb)[3 * t + 1], (*l.rgb)[3 * t + 2], &c));
+      over += c ? 1 : 0;
+    }
+    // Faces and levels of 4-byte texels need no padding.
+  }
+  if (clamped) *clamped = over;
+  return out;
+}
+
+std::string png16Bytes(int width, int height, int channels, const std::vector<uint16_t>& samples) {
+  if (width < 1 || height < 1 || channels < 1 || channels > 4 ||
+      samples.size() != size_t(width) * size_t(height) * size_t(channels))
+    throw OutputError("png", "bad image dimensions");
+  // Filter type 0 per row, big-endian samples, one zlib stream (stb_image_write's deflate).
+  const size_t rowBytes = 1 + 2 * size_t(width) * size_t(channels);
+  std::string raw(rowBytes * size_t(height), '\0');
+  for (int y = 0; y < height; ++y)
+    for (size_t x = 0; x < size_t(width) * size_t(channels); ++x) {
+      const uint16_t v = samples[size_t(y) * size_t(width) * size_t(channels) + x];
+      raw[size_t(y) * rowBytes + 1 + 2 * x] = char(v >> 8);
+      raw[size_t(y) * rowBytes + 2 + 2 * x] = char(v & 0xff);
+    }
+  int zlen = 0;
+  unsigned char* z = stbi_zlib_compress(reinterpret_cast<unsigned char*>(raw.data()), int(raw.size()), &zlen, 8);
+  if (!z) throw OutputError("png", "deflate failed");
+  const std::string idat(reinterpret_cast<const char*>(z), size_t(zlen));
+  std::free(z);
+  static const int kColourType[5] = {0, 0, 4, 2, 6};  // grey, grey + alpha, RGB, RGBA
+  std::string ihdr;
+  detail::appendBE(ihdr, uint32_t(width));
+  detail::appendBE(ihdr, uint32_t(height));
+  ihdr += std::string{char(16), char(kColourType[channels]), 0, 0, 0};
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  detail::appendPngChunk(png, "IHDR", ihdr);
+  detail::appendPngChunk(png, "tEXt", std::string("Software") + std::string(1, '\0') + "prtbake " + version());
+  detail::appendPngChunk(png, "IDAT", idat);
+  detail::appendPngChunk(png, "IEND", "");
+  return png;
+}
+
+}  // namespace prtbake
