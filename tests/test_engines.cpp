@@ -276,3 +276,40 @@ TEST_CASE("Engines: bad input and bad options fail cleanly, leaving nothing", "[
   CHECK(test::fileExists(dir + "/pkg/filament/ibl.ktx"));
   CHECK(test::runShell("ls -A '" + dir + "' | grep -c prtbake-tmp").output == "0\n");
 }
+
+TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have no issues", "[engines][gltf]") {
+  // Every issue counts: errors, warnings, infos and hints must all be 0. Seen failing: the
+  // text copy with one _PRT_T accessor's count 7 too large (ACCESSOR_TOO_LONG,
+  // MESH_PRIMITIVE_UNEQUAL_ACCESSOR_COUNT).
+  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
+  if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
+    PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
+  const std::string dir = test::tempDir("gltf_validator");
+  const std::string scene = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf";
+  auto validate = [&](const std::string& file) {
+    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");
+    INFO(r.output.substr(0, 3000));
+    REQUIRE(r.exitCode == 0);
+    return json::parse(r.output);
+  };
+  for (const std::string ext : {"glb", "gltf"}) {
+    for (const std::string mode : {"unshadowed", "shadowed"}) {
+      const std::string out = dir + "/" + mode + "." + ext;
+      REQUIRE(test::runCli("transport '" + scene + "' -o '" + dir + "/t.npy' --mode " + mode + " --samples 64 --gltf '" + out +
+                           "' --quiet")
+                  .exitCode == 0);
+      const json rep = validate(out);
+      INFO(out << ": " << rep.dump());
+      CHECK(rep["errors"] == 0);
+      CHECK(rep["warnings"] == 0);
+      CHECK(rep["infos"] == 0);
+      CHECK(rep["hints"] == 0);
+    }
+  }
+  // The control: a broken copy must not pass.
+  json broken = json::parse(readText(dir + "/shadowed.gltf"));
+  const int prt = broken["meshes"][0]["primitives"][0]["attributes"]["_PRT_T0"].get<int>();
+  broken["accessors"][prt]["count"] = broken["accessors"][prt]["count"].get<int>() + 7;
+  std::ofstream(dir + "/broken.gltf") << broken.dump();
+  CHECK(validate(dir + "/broken.gltf")["errors"].get<int>() > 0);
+}
