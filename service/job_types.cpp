@@ -11,6 +11,7 @@
 #include "prtbake/hash.h"
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
+#include "prtbake/engine.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/preview.h"
 #include "prtbake/transport.h"
@@ -269,6 +270,33 @@ ExecResult runPrefilter(const Job& job, ExecContext& ctx) {
   return result;
 }
 
+// --- ibl: environment → engine lighting package directory (prtbake ibl) ---
+ExecResult runIbl(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  IblPackageOptions o;
+  o.targets = parseEngineTargets(p["target"].get<std::string>(), "target");
+  o.size = p["size"].get<int>();
+  o.skyboxSize = p["skybox_size"].get<int>();
+  o.lutSize = p["lut_size"].get<int>();
+  o.tolerance = p["tolerance"].get<double>();
+  validateIblPackageOptions(o);
+  EnvLoadOptions loadOptions;
+  loadOptions.layout = p["layout"].get<std::string>();
+  loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
+  const auto t0 = std::chrono::steady_clock::now();
+  EnvMap env = loadEnvironment(job.input, loadOptions);
+  env.yawDegrees = p["yaw"].get<double>();
+  const double loadSeconds = secondsSince(t0);
+  const json meta = {{"job", job.id}, {"parameters", p}, {"timings_seconds", {{"load", loadSeconds}}}};
+  const IblPackageResult r = writeIblPackage(ctx.runtime(), env, ctx.output("dir"), o, meta.dump());
+  ExecResult result;
+  result.inputFiles = filesRead(job, env.inputFiles);
+  json files = json::array();
+  for (const auto& f : r.files) files.push_back(f.path);
+  result.report = {{"files", files}, {"timings", {{"load_seconds", loadSeconds}, {"total_seconds", r.seconds}}}};
+  return result;
+}
+
 KeySpec integer(const std::string& name, long long def, double lo, double hi) {
   return {name, ValueKind::Integer, def, lo, hi, {}};
 }
@@ -405,6 +433,38 @@ std::vector<JobType> makeJobTypes() {
   };
   prefilter.execute = runPrefilter;
   types.push_back(prefilter);
+
+  JobType ibl;
+  ibl.name = "ibl";
+  ibl.input = InputKind::FileOrDirectory;
+  ibl.outputKinds = {"dir"};
+  ibl.keys = {choice("target", "all", {"all", "threejs", "filament", "gltf"}),
+              integer("size", 256, 16, 4096),
+              integer("skybox_size", 0, 0, 4096),
+              integer("lut_size", 128, 16, 1024),
+              number("tolerance", 0.01, 1e-4, 0.1),
+              choice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"}),
+              number("yaw", 0.0, -360.0, 360.0),
+              boolean("clamp_invalid", false)};
+  ibl.check = [](const json& raw, const json& p) {
+    std::vector<std::pair<std::string, std::string>> problems;
+    if (raw.contains("outputs") && raw["outputs"].is_object() && !raw["outputs"].contains("dir"))
+      problems.push_back({"outputs", "an ibl job needs a 'dir' output (the package directory)"});
+    try {
+      IblPackageOptions o;
+      o.targets = parseEngineTargets(p["target"].get<std::string>(), "target");
+      o.size = p["size"].get<int>();
+      o.skyboxSize = p["skybox_size"].get<int>();
+      o.lutSize = p["lut_size"].get<int>();
+      o.tolerance = p["tolerance"].get<double>();
+      validateIblPackageOptions(o);
+    } catch (const Error& e) {
+      problems.push_back({e.subject().substr(e.subject().find_first_not_of('-')), e.detail()});
+    }
+    return problems;
+  };
+  ibl.execute = runIbl;
+  types.push_back(ibl);
   return types;
 }
 

@@ -266,7 +266,7 @@ class JobValidator {
       }
       const std::string path = resolve(o->get<std::string>());
       struct stat st {};
-      if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+      if (kind != "dir" && ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {  // "dir": an ibl package
         problem(key, "is a directory: " + path);
         continue;
       }

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include <ctime>
+#include <filesystem>
 
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -14,9 +15,17 @@ namespace {
 
 constexpr int kManifestFormat = 1;
 
+// A file's size; a directory output's (an ibl package) is the total of its files'.
 long long fileSize(const std::string& path) {
   struct stat st {};
-  return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) ? static_cast<long long>(st.st_size) : -1;
+  if (::stat(path.c_str(), &st) != 0) return -1;
+  if (S_ISREG(st.st_mode)) return static_cast<long long>(st.st_size);
+  if (!S_ISDIR(st.st_mode)) return -1;
+  long long total = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(path, ec))
+    if (e.is_regular_file(ec)) total += static_cast<long long>(e.file_size(ec));
+  return ec ? -1 : total;
 }
 
 

@@ -66,7 +66,8 @@ class StagedOutputs {
     }
   }
   ~StagedOutputs() {
-    for (const auto& [staging, final] : order_) ::unlink(staging.c_str());
+    std::error_code ec;
+    for (const auto& [staging, final] : order_) fs::remove_all(staging, ec);
   }
   StagedOutputs(const StagedOutputs&) = delete;
   StagedOutputs& operator=(const StagedOutputs&) = delete;
@@ -82,12 +83,25 @@ class StagedOutputs {
 
   void commit() {
     std::vector<std::string> committed;
+    std::error_code ec;
     for (const auto& [staging, final] : order_) {
+      // A directory output (an ibl package) replaces the previous one: that is moved aside
+      // first (rename cannot replace a non-empty directory) and removed after.
+      std::string aside;
+      if (fs::is_directory(staging, ec) && fs::is_directory(final, ec)) {
+        const fs::path f(final);
+        aside = (f.parent_path() / ("." + f.filename().string() + ".prtbake-tmp." + std::to_string(::getpid()) + ".old"))
+                    .string();
+        fs::remove_all(aside, ec);
+        if (::rename(final.c_str(), aside.c_str()) != 0) aside.clear();
+      }
       if (::rename(staging.c_str(), final.c_str()) != 0) {
         const std::string why = std::strerror(errno);
-        for (const auto& c : committed) ::unlink(c.c_str());
+        if (!aside.empty()) ::rename(aside.c_str(), final.c_str());
+        for (const auto& c : committed) fs::remove_all(c, ec);
         throw OutputError(final, "rename failed: " + why);
       }
+      if (!aside.empty()) fs::remove_all(aside, ec);
       committed.push_back(final);
     }
     std::set<std::string> dirs;
@@ -117,7 +131,7 @@ int removeOldTempFiles(const std::string& dir, double ageSeconds) {
     std::error_code tec;
     const auto t = fs::last_write_time(e.path(), tec);
     if (tec || std::chrono::duration<double>(now - t).count() < ageSeconds) continue;
-    if (fs::remove(e.path(), tec)) ++removed;
+    if (fs::remove_all(e.path(), tec) > 0 && !tec) ++removed;
   }
   return removed;
 }

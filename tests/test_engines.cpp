@@ -313,3 +313,23 @@ TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have 
   std::ofstream(dir + "/broken.gltf") << broken.dump();
   CHECK(validate(dir + "/broken.gltf")["errors"].get<int>() > 0);
 }
+
+TEST_CASE("Jobs: an ibl job writes its package directory, skips when up to date, replaces it when forced", "[engines][jobs]") {
+  const std::string dir = test::tempDir("engines_job");
+  std::ofstream(dir + "/jobs.json") << R"({"jobs": [
+    {"id": "pkg", "type": "ibl", "input": ")" << kSky << R"(", "outputs": {"dir": "out/pkg"},
+     "target": "threejs", "size": 16}]})";
+  REQUIRE(test::runShell("mkdir '" + dir + "/out'").exitCode == 0);
+  const auto first = test::runCli("run '" + dir + "/jobs.json'");
+  INFO(first.output);
+  REQUIRE(first.exitCode == 0);
+  CHECK(test::fileExists(dir + "/out/pkg/threejs/light_probe.json"));
+  CHECK(test::fileExists(dir + "/out/pkg.manifest.json"));
+  CHECK_THAT(test::runCli("run '" + dir + "/jobs.json'").output, Catch::Contains("[skipped] pkg (up to date)"));
+  // A changed package is out of date; --force replaces it whole.
+  std::ofstream(dir + "/out/pkg/threejs/extra.txt") << "x";
+  CHECK_THAT(test::runCli("run '" + dir + "/jobs.json'").output, Catch::Contains("[ok] pkg"));
+  CHECK(!test::fileExists(dir + "/out/pkg/threejs/extra.txt"));
+  CHECK(test::runCli("run '" + dir + "/jobs.json' --force").exitCode == 0);
+  CHECK(test::runShell("ls -A '" + dir + "/out'").output == "pkg\npkg.manifest.json\n");
+}

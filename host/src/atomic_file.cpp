@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -100,7 +101,8 @@ int removeStaleTempFiles(const std::string& dir) {
     const long pid = std::strtol(name.c_str() + at + std::strlen(kTempMarker), nullptr, 10);
     const bool alive = pid > 0 && (::kill(pid_t(pid), 0) == 0 || errno == EPERM);
     if (pid == getpid() || alive) continue;
-    if (::unlink((dir + "/" + name).c_str()) == 0) ++removed;
+    std::error_code ec;  // a directory: the staging copy of a package (writeIblPackage)
+    if (std::filesystem::remove_all(dir + "/" + name, ec) > 0 && !ec) ++removed;
   }
   ::closedir(d);
   return removed;

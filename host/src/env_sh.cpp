@@ -257,7 +257,11 @@ ShCoeffs readShJson(const std::string& path, std::string* metaJson) {
   }
   ShCoeffs c;
   try {
-    c.order = j.at("order").get<int>();
+    // An integer beyond int64 parses as a double; get<int> of that is undefined (found by fuzzing).
+    const auto& order = j.at("order");
+    if (!order.is_number_integer() || order.get<long long>() < 1 || order.get<long long>() > kMaxShOrder)
+      throw InputError(path, "'order' must be an integer in [1, " + std::to_string(kMaxShOrder) + "]");
+    c.order = order.get<int>();
     c.quantity = parseQuantity(j.at("quantity").get<std::string>());
     const auto& arr = j.at("coefficients");
     if (c.order < 1 || c.order > kMaxShOrder || arr.size() != size_t(c.order) * size_t(c.order))
