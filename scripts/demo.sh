@@ -22,6 +22,8 @@ The demo baked, in $out ($(( $(date +%s) - start )) s in all):
   scene_transport.npy, scene_prt.glb      PRT transport of assets/scene.gltf (2 bounces), as
                                           NumPy and as a glTF copy with _PRT_T* attributes
   brdf_lut.exr                            the split-sum BRDF table (R = A, G = B)
+  filament_ibl/                           a Filament package of the sky (prtbake ibl):
+                                          ibl.ktx, skybox.ktx, sh.txt, README.txt
   *.json sidecars and *.manifest.json     conventions, sample counts, errors, timings
 Open these images to see it:
   $out/demo_env.png    the sky, its order-5 SH and irradiance/pi
