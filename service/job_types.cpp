@@ -271,8 +271,7 @@ ExecResult runPrefilter(const Job& job, ExecContext& ctx) {
 }
 
 // --- ibl: environment → engine lighting package directory (prtbake ibl) ---
-ExecResult runIbl(const Job& job, ExecContext& ctx) {
-  const json& p = job.params;
+IblPackageOptions iblOptionsFrom(const json& p) {
   IblPackageOptions o;
   o.targets = parseEngineTargets(p["target"].get<std::string>(), "target");
   o.size = p["size"].get<int>();
@@ -280,6 +279,12 @@ ExecResult runIbl(const Job& job, ExecContext& ctx) {
   o.lutSize = p["lut_size"].get<int>();
   o.tolerance = p["tolerance"].get<double>();
   validateIblPackageOptions(o);
+  return o;
+}
+
+ExecResult runIbl(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  const IblPackageOptions o = iblOptionsFrom(p);
   EnvLoadOptions loadOptions;
   loadOptions.layout = p["layout"].get<std::string>();
   loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
@@ -451,13 +456,7 @@ std::vector<JobType> makeJobTypes() {
     if (raw.contains("outputs") && raw["outputs"].is_object() && !raw["outputs"].contains("dir"))
       problems.push_back({"outputs", "an ibl job needs a 'dir' output (the package directory)"});
     try {
-      IblPackageOptions o;
-      o.targets = parseEngineTargets(p["target"].get<std::string>(), "target");
-      o.size = p["size"].get<int>();
-      o.skyboxSize = p["skybox_size"].get<int>();
-      o.lutSize = p["lut_size"].get<int>();
-      o.tolerance = p["tolerance"].get<double>();
-      validateIblPackageOptions(o);
+      iblOptionsFrom(p);
     } catch (const Error& e) {
       problems.push_back({e.subject().substr(e.subject().find_first_not_of('-')), e.detail()});
     }
