@@ -71,6 +71,34 @@ TEST_CASE("CLI: --transfer matrix writes the matrices, float16 and the sidecar",
   CHECK(worst <= 0);
 }
 
+TEST_CASE("Glossy .npy readers refuse shapes without vertices or outside the orders", "[glossy][errors]") {
+  // Each file's data matches its header, so only the shape itself is wrong. The first two
+  // were fuzzing findings: a header with V = 0 (written "-0") and n_out = 1 was read as
+  // valid matrices.
+  const std::string dir = test::tempDir("glossy_npy_shapes");
+  const struct {
+    std::vector<size_t> shape;
+    const char* why;
+  } cases[] = {{{0, 9, 16}, "no vertices"},    {{2, 1, 4}, "order 1"},      {{2, 9, 49}, "order 7"},
+               {{2, 3, 9, 15}, "not a square"}, {{2, 2, 9, 9}, "2 channels"}};
+  for (const auto& c : cases) {
+    size_t n = 1;
+    for (size_t d : c.shape) n *= d;
+    std::string bytes = glossyNpyHeader(c.shape, MatrixDtype::Float32);
+    bytes.append(n * 4, '\0');
+    std::ofstream(dir + "/m.npy", std::ios::binary | std::ios::trunc) << bytes;
+    INFO(c.why);
+    CHECK_THROWS_AS(readGlossyNpy(dir + "/m.npy"), InputError);
+    CHECK_THROWS_AS(GlossyNpyMap(dir + "/m.npy"), InputError);
+  }
+  // The control: the same writer with a valid shape reads back.
+  std::string ok = glossyNpyHeader({2, 9, 16}, MatrixDtype::Float32);
+  ok.append(2 * 9 * 16 * 4, '\0');
+  std::ofstream(dir + "/m.npy", std::ios::binary | std::ios::trunc) << ok;
+  CHECK(readGlossyNpy(dir + "/m.npy").values.size() == 2 * 9 * 16);
+  CHECK(GlossyNpyMap(dir + "/m.npy").info().orderIn == 4);
+}
+
 TEST_CASE("CLI: the matrices stream to disk in vertex blocks (bounded memory)", "[glossy][cli][memory]") {
   // Two bakes at order 6 with the exact product rule (no rays: quick): 13,000 and 52,000
   // vertices, 64 and 256 MiB of float32 matrices. The command holds one block of vertices

@@ -207,6 +207,24 @@ TEST_CASE("Transport .npy reader: round trip and validation", "[preview][mesh]")
   // A truncated file.
   std::ofstream(dir + "/short.npy", std::ios::binary) << slurp(dir + "/t.npy").substr(0, 100);
   REQUIRE_THROWS_AS(readTransportNpy(dir + "/short.npy"), InputError);
+  // Shapes a header can lie with: no vertices (the data is then empty), a sign that
+  // strtoull would accept and wrap, an exponent, an empty dimension. Each is refused with
+  // the shape quoted; the first was a fuzzing finding (a zero-length copy from null).
+  for (const std::string shape : {"(0, 3, 4)", "(-0, 3, 4)", "(-5, 3, 4)", "(5e0, 3, 4)", "(5, , 3, 4)", "()"}) {
+    std::string lie = slurp(dir + "/t.npy");
+    const size_t at = lie.find("(5, 3, 4)");
+    REQUIRE(at != std::string::npos);
+    lie.replace(at, 9, shape);
+    if (shape.rfind("(0", 0) == 0 || shape.rfind("(-0", 0) == 0) lie.resize(lie.find('\n') + 1);  // no data
+    std::ofstream(dir + "/lie.npy", std::ios::binary | std::ios::trunc) << lie;
+    try {
+      readTransportNpy(dir + "/lie.npy");
+      FAIL("no error for shape " << shape);
+    } catch (const InputError& e) {
+      INFO(shape << ": " << e.what());
+      REQUIRE(std::string(e.what()).find("lie.npy") != std::string::npos);
+    }
+  }
 }
 
 TEST_CASE("CLI preview mesh: output and errors", "[preview][mesh][cli]") {

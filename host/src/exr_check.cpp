@@ -29,6 +29,23 @@ int linesPerChunk(int compression) {
   }
 }
 
+// The bytes the library reads for a value of a fixed-size type (ImfStandardAttributes:
+// it reads these whatever the size field says, so a different size would shift every
+// later attribute); 0 for a type of variable size or one it does not know.
+size_t fixedValueSize(const std::string& type) {
+  static const struct {
+    const char* type;
+    size_t bytes;
+  } kSizes[] = {{"box2i", 16}, {"box2f", 16}, {"compression", 1}, {"lineOrder", 1}, {"envmap", 1},
+                {"deepImageState", 1}, {"float", 4}, {"int", 4}, {"double", 8}, {"rational", 8},
+                {"v2i", 8}, {"v2f", 8}, {"v2d", 16}, {"v3i", 12}, {"v3f", 12}, {"v3d", 24},
+                {"m33f", 36}, {"m33d", 72}, {"m44f", 64}, {"m44d", 128}, {"chromaticities", 32},
+                {"keycode", 28}, {"timecode", 8}, {"tiledesc", 9}};
+  for (const auto& k : kSizes)
+    if (type == k.type) return k.bytes;
+  return 0;
+}
+
 }  // namespace
 
 ExrHeaderFacts checkExrHeader(const std::string& path) {
@@ -70,23 +87,45 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
       if (size < 0 || size_t(size) > b.size() - pos)
         throw corrupt("attribute '" + name + "' claims " + std::to_string(size) + " bytes, the file has " +
                       std::to_string(b.size() - pos) + " left");
-      if (part == 0 && name == "dataWindow" && type == "box2i" && size == 16) {
-        facts.width = (long long)le32(b, pos + 8) - le32(b, pos) + 1;
-        facts.height = (long long)le32(b, pos + 12) - le32(b, pos + 4) + 1;
-      } else if (part == 0 && name == "channels" && type == "chlist") {
-        // Entries name\0 + 16 bytes, ending in \0.
+      // The library reads some values by their content rather than by the size field;
+      // each such value must fill its size exactly, or the library's reading and this
+      // walk part ways (a chlist one byte longer than its size had the library take
+      // later bytes for a 1.6 GB string's length).
+      const size_t end = pos + size_t(size);
+      const size_t fixed = fixedValueSize(type);
+      if (fixed && size_t(size) != fixed)
+        throw corrupt("attribute '" + name + "' of type " + type + " has " + std::to_string(size) + " bytes, not " +
+                      std::to_string(fixed));
+      if (type == "chlist") {  // entries name\0 + 16 bytes, then \0
         size_t p = pos;
-        const size_t end = pos + size_t(size);
+        int channels = 0;
         while (p < end && b[p] != '\0') {
           const size_t nul = b.find('\0', p);
           if (nul == std::string::npos || nul >= end || end - nul - 1 < 16) throw corrupt("malformed channel list");
           p = nul + 1 + 16;
-          ++facts.channels;
+          ++channels;
         }
-      } else if (part == 0 && name == "compression" && type == "compression" && size == 1) {
+        if (p + 1 != end) throw corrupt("the channel list does not fill its " + std::to_string(size) + " bytes");
+        if (part == 0 && name == "channels") facts.channels = channels;
+      } else if (type == "preview") {  // width, height, then width × height RGBA bytes
+        if (size < 8 || double(uint32_t(le32(b, pos))) * double(uint32_t(le32(b, pos + 4))) * 4 + 8 != double(size))
+          throw corrupt("the preview image does not fill its " + std::to_string(size) + " bytes");
+      } else if (type == "stringvector") {  // int32 length, then that many bytes, repeated
+        size_t p = pos;
+        while (end - p >= 4) {
+          const int32_t n = le32(b, p);
+          if (n < 0 || size_t(n) > end - p - 4) throw corrupt("malformed string vector '" + name + "'");
+          p += 4 + size_t(n);
+        }
+        if (p != end) throw corrupt("malformed string vector '" + name + "'");
+      }
+      if (part == 0 && name == "dataWindow" && type == "box2i") {
+        facts.width = (long long)le32(b, pos + 8) - le32(b, pos) + 1;
+        facts.height = (long long)le32(b, pos + 12) - le32(b, pos + 4) + 1;
+      } else if (part == 0 && name == "compression" && type == "compression") {
         compression = uint8_t(b[pos]);
       }
-      pos += size_t(size);
+      pos = end;
     }
     if (!multipart) break;
   }

@@ -10,10 +10,10 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
+#include "npy_format.h"
 #include "png_chunks.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -24,109 +24,54 @@
 namespace prtbake {
 namespace {
 
-void checkLittleEndian() {
-  const uint32_t probe = 1;
-  char little;
-  std::memcpy(&little, &probe, 1);
-  PRTBAKE_CHECK(little == 1, "the .npy writer assumes a little-endian host");
-}
-
-// Version 1.0 header padded to a 64-byte boundary (as npy.cpp writes it).
-std::string npyHeader(const std::string& descr, const std::vector<size_t>& shape) {
-  std::string dims;
-  for (size_t i = 0; i < shape.size(); ++i) dims += (i ? ", " : "") + std::to_string(shape[i]);
-  if (shape.size() == 1) dims += ",";
-  std::string dict = "{'descr': '" + descr + "', 'fortran_order': False, 'shape': (" + dims + "), }";
-  const size_t pre = 10;
-  const size_t total = (pre + dict.size() + 1 + 63) / 64 * 64;
-  dict.resize(total - pre - 1, ' ');
-  dict += '\n';
-  std::string h("\x93NUMPY\x01\x00", 8);
-  h += char(dict.size() & 0xff);
-  h += char(dict.size() >> 8);
-  return h + dict;
-}
-
 template <class T>
 std::string npyBytes(const std::string& descr, const std::vector<size_t>& shape, const std::vector<T>& data) {
-  checkLittleEndian();
-  std::string out = npyHeader(descr, shape);
+  npy::checkLittleEndian();
+  std::string out = npy::header(descr, shape);
   out.append(reinterpret_cast<const char*>(data.data()), data.size() * sizeof(T));
   return out;
-}
-
-// Header fields of a .npy (version 1–3) and the data offset.
-struct NpyInfo {
-  std::string descr;
-  bool fortran = false;
-  std::vector<size_t> shape;
-  size_t dataOffset = 0;
-};
-
-NpyInfo parseNpy(const std::string& bytes, const std::string& path) {
-  if (bytes.size() < 10 || bytes.compare(0, 6, "\x93NUMPY") != 0) throw InputError(path, "not a .npy file");
-  const int major = uint8_t(bytes[6]);
-  size_t len = 0, pre = 10;
-  if (major == 1) {
-    len = size_t(uint8_t(bytes[8])) | size_t(uint8_t(bytes[9])) << 8;
-  } else if (major == 2 || major == 3) {
-    if (bytes.size() < 12) throw InputError(path, "truncated .npy header");
-    len = size_t(uint8_t(bytes[8])) | size_t(uint8_t(bytes[9])) << 8 | size_t(uint8_t(bytes[10])) << 16 |
-          size_t(uint8_t(bytes[11])) << 24;
-    pre = 12;
-  } else {
-    throw InputError(path, "unsupported .npy version " + std::to_string(major));
-  }
-  if (bytes.size() < pre + len) throw InputError(path, "truncated .npy header");
-  const std::string dict = bytes.substr(pre, len);
-  NpyInfo info;
-  info.dataOffset = pre + len;
-  auto value = [&](const std::string& key) {
-    const size_t k = dict.find("'" + key + "'");
-    if (k == std::string::npos) throw InputError(path, "not a .npy file: the header has no '" + key + "'");
-    size_t p = dict.find(':', k);
-    if (p == std::string::npos) throw InputError(path, "not a .npy file: malformed header");
-    ++p;
-    while (p < dict.size() && dict[p] == ' ') ++p;
-    if (p >= dict.size()) throw InputError(path, "not a .npy file: malformed header");
-    size_t e = p;
-    if (dict[p] == '(') {
-      e = dict.find(')', p);
-      if (e == std::string::npos) throw InputError(path, "not a .npy file: malformed shape");
-      return dict.substr(p + 1, e - p - 1);
-    }
-    if (dict[p] == '\'') {
-      e = dict.find('\'', p + 1);
-      if (e == std::string::npos) throw InputError(path, "not a .npy file: malformed header");
-      return dict.substr(p + 1, e - p - 1);
-    }
-    while (e < dict.size() && dict[e] != ',' && dict[e] != '}') ++e;
-    return dict.substr(p, e - p);
-  };
-  info.descr = value("descr");
-  info.fortran = value("fortran_order").find("True") != std::string::npos;
-  std::stringstream ss(value("shape"));
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    const size_t a = item.find_first_not_of(' ');
-    if (a == std::string::npos) continue;
-    char* end = nullptr;
-    const unsigned long long v = std::strtoull(item.c_str() + a, &end, 10);
-    if (end == item.c_str() + a || (*end != '\0' && *end != ' ')) throw InputError(path, "malformed .npy shape");
-    info.shape.push_back(size_t(v));
-  }
-  return info;
-}
-
-std::string shapeText(const std::vector<size_t>& shape) {
-  std::string t = "[";
-  for (size_t i = 0; i < shape.size(); ++i) t += (i ? ", " : "") + std::to_string(shape[i]);
-  return t + "]";
 }
 
 int orderOfCount(size_t count) {
   const int n = int(std::lround(std::sqrt(double(count))));
   return size_t(n) * size_t(n) == count ? n : 0;
+}
+
+// A transfer-matrix .npy's header, parsed and its shape checked before any data is read
+// (a lying shape costs an error, not an allocation). Sets `g`'s shape fields and dtype.
+npy::Header readMatrixHeader(const std::string& path, GlossyMatrices& g) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  std::string head(65536 + 12, '\0');
+  head.resize(std::fread(&head[0], 1, head.size(), f));
+  std::fclose(f);
+  const npy::Header h = npy::parseHeader(head, path);
+  const auto& s = h.shape;
+  const std::string shape = npy::shapeText(s);
+  if (h.descr == "<f4") g.dtype = MatrixDtype::Float32;
+  else if (h.descr == "<f2") g.dtype = MatrixDtype::Float16;
+  else throw InputError(path, "expected float32 or float16 transfer matrices, not '" + h.descr + "'");
+  if (h.fortranOrder || (s.size() != 3 && !(s.size() == 4 && s[1] == 3)))
+    throw InputError(path, "expected C-order shape [V, n_out^2, n_in^2] or [V, 3, n_out^2, n_in^2], got " + shape);
+  g.channels = s.size() == 4 ? 3 : 1;
+  g.vertexCount = s[0];
+  g.orderOut = orderOfCount(s[s.size() - 2]);
+  g.orderIn = orderOfCount(s[s.size() - 1]);
+  if (g.vertexCount == 0) throw InputError(path, "holds no vertices (shape " + shape + ")");
+  for (const int n : {g.orderOut, g.orderIn})
+    if (n < kMinGlossyOrder || n > kMaxGlossyOrder)
+      throw InputError(path, "matrix dimensions are not n^2 for an order n in [" + std::to_string(kMinGlossyOrder) +
+                                 ", " + std::to_string(kMaxGlossyOrder) + "] (shape " + shape + ")");
+  checkInputMemory(path, "the transfer matrices", 4.0 * double(g.vertexCount) * g.channels *
+                                                      double(s[s.size() - 2]) * double(s[s.size() - 1]));
+  return h;
+}
+
+// The file's size matches the header's shape at `elementBytes` per value.
+void checkMatrixDataSize(const std::string& path, const npy::Header& h, size_t fileSize, double values,
+                         size_t elementBytes) {
+  if (fileSize < h.dataOffset || double(fileSize - h.dataOffset) != values * double(elementBytes))
+    throw InputError(path, "data size does not match the shape " + npy::shapeText(h.shape));
 }
 
 }  // namespace
@@ -172,11 +117,11 @@ struct NpyStreamWriter::Impl {
 
 NpyStreamWriter::NpyStreamWriter(const std::string& path, const std::vector<size_t>& shape, MatrixDtype dtype)
     : impl_(new Impl(path)) {
-  checkLittleEndian();
+  npy::checkLittleEndian();
   impl_->dtype = dtype;
   impl_->expected = 1;
   for (size_t d : shape) impl_->expected *= d;
-  impl_->file.write(npyHeader(dtype == MatrixDtype::Float16 ? "<f2" : "<f4", shape));
+  impl_->file.write(npy::header(dtype == MatrixDtype::Float16 ? "<f2" : "<f4", shape));
 }
 
 NpyStreamWriter::~NpyStreamWriter() { delete impl_; }
@@ -201,7 +146,7 @@ void NpyStreamWriter::commit() {
 const std::string& NpyStreamWriter::path() const { return impl_->file.path(); }
 
 std::string glossyNpyHeader(const std::vector<size_t>& shape, MatrixDtype dtype) {
-  return npyHeader(dtype == MatrixDtype::Float16 ? "<f2" : "<f4", shape);
+  return npy::header(dtype == MatrixDtype::Float16 ? "<f2" : "<f4", shape);
 }
 
 std::vector<size_t> glossyNpyShape(size_t vertices, int channels, int orderOut, int orderIn) {
@@ -213,40 +158,23 @@ std::vector<size_t> glossyNpyShape(size_t vertices, int channels, int orderOut, 
 }
 
 GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices) {
-  // The header first (a lying shape costs an error, not an allocation), then the data
-  // straight into the array.
+  GlossyMatrices g;
+  const npy::Header info = readMatrixHeader(path, g);
+  if (expectedVertices && g.vertexCount != expectedVertices)
+    throw InputError(path, "has " + std::to_string(g.vertexCount) + " vertices but the mesh has " +
+                               std::to_string(expectedVertices));
+  const double n = double(g.vertexCount) * g.channels * g.orderOut * g.orderOut * g.orderIn * g.orderIn;
+  const size_t elem = g.dtype == MatrixDtype::Float16 ? 2 : 4;
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   struct Closer {
     std::FILE* f;
     ~Closer() { std::fclose(f); }
   } closer{f};
-  std::string head(65536 + 12, '\0');
-  head.resize(std::fread(&head[0], 1, head.size(), f));
-  const NpyInfo info = parseNpy(head, path);
-  GlossyMatrices g;
-  if (info.descr == "<f4") g.dtype = MatrixDtype::Float32;
-  else if (info.descr == "<f2") g.dtype = MatrixDtype::Float16;
-  else throw InputError(path, "expected float32 or float16 transfer matrices, not '" + info.descr + "'");
-  if (info.fortran) throw InputError(path, "expected C order");
-  const auto& s = info.shape;
-  if (s.size() != 3 && !(s.size() == 4 && s[1] == 3))
-    throw InputError(path, "expected shape [V, n_out^2, n_in^2] or [V, 3, n_out^2, n_in^2], got " + shapeText(s));
-  g.channels = s.size() == 4 ? 3 : 1;
-  g.vertexCount = s[0];
-  g.orderOut = orderOfCount(s[s.size() - 2]);
-  g.orderIn = orderOfCount(s[s.size() - 1]);
-  if (g.orderOut < 1 || g.orderIn < 1) throw InputError(path, "matrix dimensions are not squares: " + shapeText(s));
-  if (expectedVertices && g.vertexCount != expectedVertices)
-    throw InputError(path, "has " + std::to_string(g.vertexCount) + " vertices but the mesh has " +
-                               std::to_string(expectedVertices));
-  const double n = double(g.vertexCount) * g.channels * double(s[s.size() - 2]) * double(s[s.size() - 1]);
-  checkInputMemory(path, "the transfer matrices", n * 4);
-  const size_t elem = g.dtype == MatrixDtype::Float16 ? 2 : 4;
   if (std::fseek(f, 0, SEEK_END) != 0) throw InputError(path, "cannot seek");
   const long size = std::ftell(f);
-  if (size < 0 || double(size_t(size) - info.dataOffset) != n * elem)
-    throw InputError(path, "data size does not match the shape " + shapeText(s));
+  if (size < 0) throw InputError(path, "cannot seek");
+  checkMatrixDataSize(path, info, size_t(size), n, elem);
   std::fseek(f, long(info.dataOffset), SEEK_SET);
   g.values.resize(size_t(n));
   if (elem == 4) {
@@ -265,31 +193,20 @@ GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices) {
 }
 
 GlossyNpyMap::GlossyNpyMap(const std::string& path) {
-  // The header through the reader's checks (it stops before reading data when the size
-  // is wrong), then a read-only mapping of the whole file.
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  std::string head(65536 + 12, '\0');
-  head.resize(std::fread(&head[0], 1, head.size(), f));
-  std::fclose(f);
-  const NpyInfo info = parseNpy(head, path);
-  if (info.descr != "<f4") throw InputError(path, "only float32 matrices can be mapped");
-  const auto& s = info.shape;
-  if (info.fortran || (s.size() != 3 && !(s.size() == 4 && s[1] == 3)))
-    throw InputError(path, "expected C-order shape [V, n_out^2, n_in^2] or [V, 3, n_out^2, n_in^2], got " + shapeText(s));
-  info_.channels = s.size() == 4 ? 3 : 1;
-  info_.vertexCount = s[0];
-  info_.orderOut = orderOfCount(s[s.size() - 2]);
-  info_.orderIn = orderOfCount(s[s.size() - 1]);
-  if (info_.orderOut < 1 || info_.orderIn < 1) throw InputError(path, "matrix dimensions are not squares: " + shapeText(s));
-  const double n = double(info_.vertexCount) * info_.channels * double(s[s.size() - 2]) * double(s[s.size() - 1]);
-  checkInputMemory(path, "the transfer matrices", n * 4);
+  // The header through the reader's checks, then a read-only mapping of the whole file.
+  const npy::Header info = readMatrixHeader(path, info_);
+  if (info_.dtype != MatrixDtype::Float32) throw InputError(path, "only float32 matrices can be mapped");
+  const double n = double(info_.vertexCount) * info_.channels * info_.orderOut * info_.orderOut * info_.orderIn *
+                   info_.orderIn;
   const int fd = ::open(path.c_str(), O_RDONLY);
   if (fd < 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   struct stat st {};
-  if (::fstat(fd, &st) != 0 || double(size_t(st.st_size) - info.dataOffset) != n * 4) {
+  try {
+    if (::fstat(fd, &st) != 0) throw InputError(path, std::string("cannot stat: ") + std::strerror(errno));
+    checkMatrixDataSize(path, info, size_t(st.st_size), n, 4);
+  } catch (...) {
     ::close(fd);
-    throw InputError(path, "data size does not match the shape " + shapeText(s));
+    throw;
   }
   length_ = size_t(st.st_size);
   base_ = ::mmap(nullptr, length_, PROT_READ, MAP_PRIVATE, fd, 0);
@@ -426,8 +343,8 @@ std::string memberArray(const std::map<std::string, std::string>& m, const std::
                         size_t rank, std::vector<size_t>& shape, const std::string& path) {
   const auto it = m.find(name + ".npy");
   if (it == m.end()) throw InputError(path, "the CPCA archive has no '" + name + "'");
-  const NpyInfo info = parseNpy(it->second, path + ":" + name);
-  if (info.descr != descr || info.fortran || info.shape.size() != rank)
+  const npy::Header info = npy::parseHeader(it->second, path + ":" + name);
+  if (info.descr != descr || info.fortranOrder || info.shape.size() != rank)
     throw InputError(path, "'" + name + "' is not a C-order " + descr + " array of rank " + std::to_string(rank));
   double n = 1;
   for (size_t d : info.shape) n *= double(d);
