@@ -49,18 +49,19 @@ int runIbl(const CommandLine& cl) {
 }  // namespace
 
 PRTBAKE_COMMAND(Command{
-    "ibl", "engine lighting packages: three.js, Filament and glTF/Khronos files in each engine's conventions",
-    "prtbake ibl INPUT -o DIR [--target threejs|filament|gltf|all|LIST] [--size N] [--skybox-size N]\n"
+    "ibl", "engine lighting packages: three.js, Filament, Babylon.js and glTF/Khronos files in each engine's conventions",
+    "prtbake ibl INPUT -o DIR [--target threejs|filament|babylon|gltf|all|LIST] [--size N] [--skybox-size N]\n"
     "       [--lut-size N] [--tolerance E] [--layout L] [--yaw DEG] [--clamp-invalid]\n"
     "Bakes into DIR, per target, the SH, prefiltered cubes and tables that engine loads, in its conventions,\n"
     "with a README.txt saying how to load them, and DIR/ibl.json (every parameter, convention, file and\n"
     "timing). DIR appears whole or not at all; an existing DIR is replaced only if it holds a package.\n"
     "  threejs   threejs/light_probe.json (ObjectLoader JSON of a LightProbe)\n"
     "  filament  filament/ibl.ktx, skybox.ktx (KTX1, R11F_G11F_B10F), sh.txt\n"
+    "  babylon   babylon/environment.env, environment.glb (EXT_lights_image_based)\n"
     "  gltf      gltf/lambertian/diffuse.ktx2, ggx/specular.ktx2, charlie/sheen.ktx2, lut_ggx.png, lut_charlie.png\n"
     "INPUT: anything prtbake env reads. See docs/engines.md.",
     {{"output", true, "package directory (also -o)"},
-     {"target", true, "threejs, filament, gltf, all (default) or a comma-separated list"},
+     {"target", true, "threejs, filament, babylon, gltf, all (default) or a comma-separated list"},
      {"size", true, "base face size of the prefiltered cubes (power of two, 16..4096, default 256)"},
      {"skybox-size", true, "Filament skybox face size (default: --size)"},
      {"lut-size", true, "glTF LUT size (16..1024, default 128)"},

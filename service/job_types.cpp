@@ -443,7 +443,7 @@ std::vector<JobType> makeJobTypes() {
   ibl.name = "ibl";
   ibl.input = InputKind::FileOrDirectory;
   ibl.outputKinds = {"dir"};
-  ibl.keys = {choice("target", "all", {"all", "threejs", "filament", "gltf"}),
+  ibl.keys = {choice("target", "all", {"all", "threejs", "filament", "babylon", "gltf"}),
               integer("size", 256, 16, 4096),
               integer("skybox_size", 0, 0, 4096),
               integer("lut_size", 128, 16, 1024),

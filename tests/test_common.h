@@ -85,6 +85,23 @@ inline bool fileExists(const std::string& path) {
   return ::stat(path.c_str(), &st) == 0;
 }
 
+// Debian's Chromium, or "" when it is not installed.
+inline std::string chromiumPath() {
+  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser"})
+    if (fileExists(p)) return p;
+  return {};
+}
+
+// Loads `page` (an HTML file) in headless Chromium with WebGL on SwiftShader and returns what
+// the page's `window.result` (a promise of a string) resolves to, as the output's last line
+// (tests/js/chromium_page.mjs drives Chromium over its DevTools pipe; 100 s at most). Pages
+// may read files beside them and import modules by absolute path.
+inline CliResult chromiumPage(const std::string& chromium, const std::string& page) {
+  return runShell("PRTBAKE_CHROMIUM_PROFILE='" + page + ".profile' timeout 110 node '" +
+                  std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/chromium_page.mjs' '" + chromium + "' 'file://" + page +
+                  "' 100");
+}
+
 }  // namespace prtbake::test
 
 #define PRTBAKE_SKIP(reason)                   \

@@ -1,14 +1,16 @@
-// Engine packages (`prtbake ibl`), read back by the engines' own code: three.js and Filament
-// from npm (tests/js/engines.mjs, pinned in tests/js/package-lock.json), the KTX2 cubes by
+// Engine packages (`prtbake ibl`), read back by the engines' own code: three.js, Filament and
+// Babylon.js from npm (tests/js/engines.mjs, pinned in tests/js/package-lock.json), the KTX2 cubes by
 // ktx-parse (tests/js/ktx2_read.mjs), the 16-bit tables by stb_image.
 #include <stb/stb_image.h>
 
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "prtbake/engine.h"
+#include "prtbake/envmap.h"
 #include "prtbake/lut.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/sh.h"
@@ -27,7 +29,8 @@ constexpr int kTexelStride = 7;
 bool nodeReady() {
   const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/";
   return test::runShell("command -v node").exitCode == 0 && test::fileExists(js + "three/package.json") &&
-         test::fileExists(js + "filament/package.json") && test::fileExists(js + "ktx-parse/package.json");
+         test::fileExists(js + "filament/package.json") && test::fileExists(js + "ktx-parse/package.json") &&
+         test::fileExists(js + "@babylonjs/core/package.json");
 }
 
 std::string readText(const std::string& path) {
@@ -78,11 +81,14 @@ double worstRelative(const json& engine, const std::vector<std::array<double, 3>
 
 }  // namespace
 
-TEST_CASE("Engines: three.js and Filament evaluate the package's SH as prtbake does", "[engines]") {
+TEST_CASE("Engines: three.js, Filament and Babylon.js evaluate the package's SH as prtbake does", "[engines]") {
   // Agreement asked of the exports: 1e-5 relative. three.js evaluates in double (measured
   // ~1e-15), Filament's getColorEstimate in float32 wasm from numbers printed with 9 (KTX "sh")
-  // or 15 (sh.txt) significant digits (measured ~3e-7). Seen failing: the three.js coefficients
-  // with the Condon–Shortley signs kept, and the Filament ones without the π, both ~1.
+  // or 15 (sh.txt) significant digits (measured ~3e-7), Babylon in double (measured ~1e-15: the
+  // .env polynomial is the exact inverse of its FromPolynomial). Seen failing: the three.js
+  // coefficients with the Condon–Shortley signs kept, the Filament ones without the π, both ~1;
+  // the Babylon ones without the mirror in x, 7.7 (the mirror itself is the mapping of Babylon's glTF
+  // loader; a render in Babylon is what proves it).
   constexpr double kEngineTol = 1e-5;
   if (!nodeReady()) PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): the engines cannot run");
   const std::string dir = test::tempDir("engines");
@@ -123,14 +129,31 @@ TEST_CASE("Engines: three.js and Filament evaluate the package's SH as prtbake d
   // Filament's SH reconstruction clamps at 0 (its shader does too).
   const double filKey = worstRelative(got["filament"]["irradianceKey"], irradianceClamped);
   const double filTxt = worstRelative(got["filament"]["irradianceTxt"], irradianceClamped);
-  INFO("three.js radiance " << threeL << ", irradiance " << threeE << "; Filament KTX sh " << filKey << ", sh.txt " << filTxt);
+  const double babEnv = worstRelative(got["babylon"]["env"]["irradiance"], irradiance);
+  const double babGlb = worstRelative(got["babylon"]["glb"]["irradiance"], irradiance);
+  INFO("three.js radiance " << threeL << ", irradiance " << threeE << "; Filament KTX sh " << filKey << ", sh.txt " << filTxt
+                            << "; Babylon .env " << babEnv << ", .glb " << babGlb);
   CHECK(threeL < kEngineTol);
   CHECK(threeE < kEngineTol);
   CHECK(filKey < kEngineTol);
   CHECK(filTxt < kEngineTol);
+  CHECK(babEnv < kEngineTol);
+  CHECK(babGlb < kEngineTol);
+  // Babylon's loader accepts the .env's layout: every level from 32² to 1², six PNGs each, read at
+  // lod = log2(size · α_G) · 1; the .glb's light has the same chain.
+  const json& env = got["babylon"]["env"];
+  CHECK(env["version"] == 2);
+  CHECK(env["width"] == 32);
+  CHECK(env["levels"] == 6);
+  CHECK(env["faceSizes"] == json::array({6, 6, 6, 6, 6, 6}));
+  CHECK(env["allPng"] == true);
+  CHECK(env["lodGenerationScale"] == 1);
+  CHECK(got["babylon"]["glb"]["specularImageSize"] == 32);
+  CHECK(got["babylon"]["glb"]["levels"] == 6);
+  CHECK(got["babylon"]["glb"]["images"] == 36);
 
   // The same comparison fails on a deliberately wrong export: one coefficient's sign flipped
-  // (three.js: L1,-1; Filament: L1,1 in both the KTX key and sh.txt).
+  // (three.js: L1,-1; Filament: L1,1 in both the KTX key and sh.txt; Babylon: the .env's x field).
   json probe = json::parse(readText(dir + "/pkg/threejs/light_probe.json"));
   for (int k = 0; k < 3; ++k) probe["object"]["sh"][3 + k] = -probe["object"]["sh"][3 + k].get<double>();
   std::ofstream(dir + "/pkg/threejs/light_probe.json") << probe.dump();
@@ -139,12 +162,23 @@ TEST_CASE("Engines: three.js and Filament evaluate the package's SH as prtbake d
   const size_t open = shTxt.rfind('(', line3);
   shTxt.insert(open + 1, "-");  // the red value of L11 negated (it was printed with a leading space or sign)
   std::ofstream(dir + "/pkg/filament/sh.txt") << shTxt;
+  // The .env: magic, manifest, NUL, images placed relative to the NUL; the red value of the
+  // polynomial's x negated.
+  const std::string envFile = readText(dir + "/pkg/babylon/environment.env");
+  const size_t nul = envFile.find('\0', 8);
+  REQUIRE(nul != std::string::npos);
+  json manifest = json::parse(envFile.substr(8, nul - 8));
+  manifest["irradiance"]["x"][0] = -manifest["irradiance"]["x"][0].get<double>();
+  std::ofstream(dir + "/pkg/babylon/environment.env", std::ios::binary)
+      << envFile.substr(0, 8) << manifest.dump() << envFile.substr(nul);
   const json wrong = engineReadback(dir + "/pkg", dir + "/dirs.json");
   const double wrongThree = worstRelative(wrong["three"]["irradiance"], irradiance);
   const double wrongFil = worstRelative(wrong["filament"]["irradianceTxt"], irradianceClamped);
-  INFO("flipped sign: three.js " << wrongThree << ", Filament sh.txt " << wrongFil);
+  const double wrongBab = worstRelative(wrong["babylon"]["env"]["irradiance"], irradiance);
+  INFO("flipped sign: three.js " << wrongThree << ", Filament sh.txt " << wrongFil << ", Babylon .env " << wrongBab);
   CHECK(wrongThree > 100 * kEngineTol);
   CHECK(wrongFil > 100 * kEngineTol);
+  CHECK(wrongBab > 100 * kEngineTol);
 }
 
 TEST_CASE("Engines: Filament reads the KTX1 cubes prtbake prefiltered, face by face", "[engines]") {
@@ -193,6 +227,121 @@ TEST_CASE("Engines: Filament reads the KTX1 cubes prtbake prefiltered, face by f
   INFO("worst texel error / rounding bound: " << ok << "; against face +X mirrored: " << mirrored);
   CHECK(ok <= 1.0001);
   CHECK(mirrored > 10);
+}
+
+// The page: Babylon.js (from tests/js/node_modules) loads __ENV__ as scene.environmentTexture
+// would (CubeTexture with its .env loader: RGBD PNGs decoded and expanded into a half-float cube
+// on the GPU), then reads every face of every level back with texture.readPixels.
+const char* kBabylonEnvPage = R"(<!doctype html><html><body><canvas id="c" width="64" height="64"></canvas>
+<script type="module">
+import { Engine } from '__CORE__/Engines/engine.js';
+import { Scene } from '__CORE__/scene.js';
+import { CubeTexture } from '__CORE__/Materials/Textures/cubeTexture.js';
+import '__CORE__/Materials/Textures/Loaders/envTextureLoader.js';
+let settle;
+window.result = new Promise((resolve) => { settle = resolve; });
+const engine = new Engine(document.getElementById('c'), false, { preserveDrawingBuffer: true });
+const scene = new Scene(engine);
+const tex = new CubeTexture('file://__ENV__', scene, null, false, null, async () => {
+  try {
+    const size = tex.getSize().width, levels = [];
+    for (let l = 0; (size >> l) >= 1; ++l) {
+      const faces = [];
+      for (let f = 0; f < 6; ++f) faces.push(Array.from(await tex.readPixels(f, l)));
+      levels.push(faces);
+    }
+    settle('RESULT ' + JSON.stringify({ size, textureType: tex.textureType, levels }));
+  } catch (e) { settle('ERROR ' + e); }
+}, (message, e) => { settle('ERROR loading: ' + message + ' ' + e); });
+</script></body></html>
+)";
+
+std::string replaceAll(std::string s, const std::string& from, const std::string& to) {
+  for (size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size())) s.replace(at, from.size(), to);
+  return s;
+}
+
+TEST_CASE("Engines: Babylon.js in Chromium reads the .env cube prtbake prefiltered, texel by texel", "[engines][chromium]") {
+  // Babylon's texels, as its loader decodes them, against the chain prtbake prefiltered, looked up
+  // where Babylon's frame puts them (x negated) in the GL orientation Babylon samples. Tolerance:
+  // the RGBD byte's rounding, ((g + ½/255)^2.2 − g^2.2) / D for the stored g = (v D)^(1/2.2), plus
+  // the half-float texture's 2^-11 relative. Values above RGBD's 255 are left out (clamped). Seen
+  // failing: face +X mirrored, and the images stored top row first (rows flipped).
+  const std::string chromium = test::chromiumPath();
+  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Babylon cannot run");
+  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Babylon.js not installed");
+  const std::string dir = test::tempDir("engines_babylon_env");
+  REQUIRE(test::runCli("ibl '" + kSky + "' -o '" + dir + "/pkg' --target babylon" + kPackageArgs).exitCode == 0);
+  const std::string page = dir + "/env.html";
+  std::ofstream(page) << replaceAll(replaceAll(kBabylonEnvPage, "__CORE__",
+                                               std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/@babylonjs/core"),
+                                    "__ENV__", dir + "/pkg/babylon/environment.env");
+  const test::CliResult res = test::chromiumPage(chromium, page);
+  const size_t at = res.output.find("RESULT {");
+  INFO("chromium_page.mjs exit " << res.exitCode << ": " << res.output.substr(0, 2000));
+  REQUIRE(at != std::string::npos);
+  const json got = json::parse(res.output.substr(at + 7, res.output.find('\n', at) - at - 7));
+  CHECK(got["size"] == 32);
+
+  EnvLoadOptions lo;
+  const EnvMap env = loadEnvironment(kSky, lo);
+  PrefilterOptions o;
+  o.schedule = PrefilterSchedule::Babylon;
+  o.baseSize = 32;
+  o.levels = 6;
+  const PrefilterResult chain = prefilterEnvironment(test::runtime(), env, o);
+  REQUIRE(got["levels"].size() == chain.levels.size());
+  const auto faces = standardCubeBases();
+  // Babylon's face f, GL row r, column c shows prtbake's direction with x negated.
+  auto worstAgainst = [&](bool mirrorFace0, bool flipRows) {
+    double worst = 0;
+    long long compared = 0;
+    for (size_t l = 0; l < chain.levels.size(); ++l) {
+      const int n = chain.levels[l].spec.size;
+      for (int f = 0; f < 6; ++f) {
+        const json& px = got["levels"][l][f];
+        REQUIRE(px.size() == size_t(n) * n * 4);
+        for (int r = 0; r < n; ++r)
+          for (int c = 0; c < n; ++c) {
+            const int row = flipRows ? n - 1 - r : r, col = (mirrorFace0 && f == 0) ? n - 1 - c : c;
+            const double u = 2 * (col + 0.5) / n - 1, v = 2 * (row + 0.5) / n - 1;
+            const auto& b = faces[size_t(f)];
+            double d[3];
+            for (int k = 0; k < 3; ++k) d[k] = u * b.axisU[size_t(k)] + v * b.axisV[size_t(k)] + b.axisN[size_t(k)];
+            d[0] = -d[0];
+            // The prtbake texel holding d: by the major axis, then (u, v) on that face.
+            int best = 0;
+            for (int g = 1; g < 6; ++g) {
+              const auto& a = faces[size_t(g)].axisN, & w = faces[size_t(best)].axisN;
+              if (a[0] * d[0] + a[1] * d[1] + a[2] * d[2] > w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) best = g;
+            }
+            const auto& s = faces[size_t(best)];
+            const double dn = s.axisN[0] * d[0] + s.axisN[1] * d[1] + s.axisN[2] * d[2];
+            const int sc = std::clamp(int(std::floor(((s.axisU[0] * d[0] + s.axisU[1] * d[1] + s.axisU[2] * d[2]) / dn + 1) / 2 * n)), 0, n - 1);
+            const int sr = std::clamp(int(std::floor(((s.axisV[0] * d[0] + s.axisV[1] * d[1] + s.axisV[2] * d[2]) / dn + 1) / 2 * n)), 0, n - 1);
+            const float* mine = &chain.levels[l].rgb[3 * ((size_t(best) * n + size_t(sr)) * n + size_t(sc))];
+            const double m = std::max({double(mine[0]), double(mine[1]), double(mine[2]), 1e-7});
+            if (m > 255) continue;  // beyond RGBD's range: clamped
+            const double D = std::clamp(std::floor(std::max(255.0 / m, 1.0)), 1.0, 255.0) / 255.0;
+            for (int k = 0; k < 3; ++k) {
+              const double g = std::pow(double(mine[k]) * D, 1 / 2.2);
+              const double bound = (std::pow(std::min(1.0, g + 0.5 / 255), 2.2) - std::pow(g, 2.2)) / D +
+                                   std::abs(mine[k]) * std::ldexp(1.0, -11) + 1e-6;
+              const double theirs = px[(size_t(r) * n + size_t(c)) * 4 + size_t(k)].get<double>();
+              worst = std::max(worst, std::abs(theirs - mine[k]) / bound);
+            }
+            ++compared;
+          }
+      }
+    }
+    CHECK(compared > 6 * 1000);
+    return worst;  // in units of the bound
+  };
+  const double ok = worstAgainst(false, false), mirrored = worstAgainst(true, false), flipped = worstAgainst(false, true);
+  INFO("worst texel error / bound: " << ok << "; face +X mirrored: " << mirrored << "; rows flipped: " << flipped);
+  CHECK(ok <= 1);
+  CHECK(mirrored > 10);
+  CHECK(flipped > 10);
 }
 
 TEST_CASE("Engines: the glTF layout's KTX2 cubes and 16-bit tables", "[engines]") {
@@ -312,6 +461,54 @@ TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have 
   broken["accessors"][prt]["count"] = broken["accessors"][prt]["count"].get<int>() + 7;
   std::ofstream(dir + "/broken.gltf") << broken.dump();
   CHECK(validate(dir + "/broken.gltf")["errors"].get<int>() > 0);
+}
+
+TEST_CASE("glTF-Validator: the Babylon target's EXT_lights_image_based scene", "[engines][gltf]") {
+  // 0 errors and 0 warnings. Accepted infos, the only ones: UNSUPPORTED_EXTENSION (the validator
+  // has no schema for EXT_lights_image_based, a vendor extension) and UNUSED_OBJECT for each
+  // image (they are referenced only from inside that extension). Seen failing: a copy whose
+  // first buffer view runs 4 bytes past the binary chunk (BUFFER_VIEW_TOO_LONG).
+  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
+  if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
+    PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
+  const std::string dir = test::tempDir("gltf_validator_ibl");
+  REQUIRE(test::runCli("ibl '" + kSky + "' -o '" + dir + "/pkg' --target babylon --size 16 --quiet").exitCode == 0);
+  auto validate = [&](const std::string& file) {
+    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");
+    INFO(r.output.substr(0, 3000));
+    REQUIRE(r.exitCode == 0);
+    return json::parse(r.output);
+  };
+  const std::string glb = dir + "/pkg/babylon/environment.glb";
+  const json rep = validate(glb);
+  INFO(rep.dump().substr(0, 2000));
+  CHECK(rep["errors"] == 0);
+  CHECK(rep["warnings"] == 0);
+  CHECK(rep["hints"] == 0);
+  int unsupported = 0, unusedImages = 0;
+  for (const auto& m : rep["messages"]) {
+    const std::string code = m["code"], pointer = m["pointer"];
+    if (code == "UNSUPPORTED_EXTENSION" && pointer == "/extensionsUsed/0") ++unsupported;
+    else if (code == "UNUSED_OBJECT" && pointer.rfind("/images/", 0) == 0) ++unusedImages;
+    else FAIL_CHECK("unexpected message " << m.dump());
+  }
+  CHECK(unsupported == 1);
+  CHECK(unusedImages == 5 * 6);  // 16² down to 1²
+  CHECK(rep["infos"] == unsupported + unusedImages);
+  // The control: the first buffer view made 4 bytes longer than the data.
+  const std::string bytes = readText(glb);
+  uint32_t jsonLen = 0;
+  std::memcpy(&jsonLen, bytes.data() + 12, 4);
+  json gltf = json::parse(bytes.substr(20, jsonLen));
+  gltf["bufferViews"][0]["byteOffset"] = gltf["buffers"][0]["byteLength"].get<size_t>() - gltf["bufferViews"][0]["byteLength"].get<size_t>() + 4;
+  std::string text = gltf.dump();
+  while (text.size() % 4) text.push_back(' ');
+  std::string broken = bytes.substr(0, 12);
+  const uint32_t newLen = uint32_t(text.size()), total = uint32_t(bytes.size() - jsonLen + text.size());
+  std::memcpy(&broken[8], &total, 4);
+  broken += std::string(reinterpret_cast<const char*>(&newLen), 4) + "JSON" + text + bytes.substr(20 + jsonLen);
+  std::ofstream(dir + "/broken.glb", std::ios::binary) << broken;
+  CHECK(validate(dir + "/broken.glb")["errors"].get<int>() > 0);
 }
 
 TEST_CASE("Jobs: an ibl job writes its package directory, skips when up to date, replaces it when forced", "[engines][jobs]") {

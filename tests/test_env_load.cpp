@@ -776,7 +776,7 @@ TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
       REQUIRE(at != std::string::npos);
       return at + nameAndType.size();
     };
-    for (const std::string attr : {std::string("channels\0chlist\0", 16), std::string("dataWindow\0box2i\0", 17)}) {
+    for (const std::string& attr : {std::string("channels\0chlist\0", 16), std::string("dataWindow\0box2i\0", 17)}) {
       for (const int delta : {-1, +1}) {
         std::string edited = bytes;
         edited[sizeFieldAfter(attr)] = char(uint8_t(edited[sizeFieldAfter(attr)]) + delta);

@@ -19,12 +19,6 @@ using namespace prtbake;
 
 namespace {
 
-std::string chromiumPath() {
-  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser"})
-    if (test::fileExists(p)) return p;
-  return {};
-}
-
 std::string readText(const std::string& path) {
   std::ifstream in(path);
   std::stringstream ss;
@@ -34,7 +28,7 @@ std::string readText(const std::string& path) {
 
 // The page: the GLSL under test inlined into a fragment shader that shades test case c
 // (x = c) with the uncompressed matrices (row y = 0) and the CPCA form (y = 1) into a float
-// framebuffer, read back and printed as "RESULT [...]" into the page.
+// framebuffer, read back and given as "RESULT [...]" (window.result, as test::chromiumPage reads it).
 const char* kPage = R"HTML(<!DOCTYPE html><html><body><pre id="out">no result</pre><script>
 const D = __DATA__;
 const GLSL = __GLSL__;
@@ -99,6 +93,7 @@ try {
 } catch (e) {
   out.textContent = 'ERROR ' + e.message;
 }
+window.result = Promise.resolve(out.textContent);
 </script></body></html>
 )HTML";
 
@@ -118,7 +113,7 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
   // Y_l,−m (a mirrored index) differed by 0.56; reading the matrix texture transposed
   // (texel (i, v·n_out² + j)) by 0.37 (the orders are rectangular so that it shows).
   constexpr double kGlslTol = 1e-4;
-  const std::string chromium = chromiumPath();
+  const std::string chromium = test::chromiumPath();
   if (chromium.empty())
     PRTBAKE_SKIP("chromium not found (Debian package 'chromium'; scripts/packages.sh installs it with the test packages)");
   const std::string glslPath = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../docs/glsl/prt_glossy.glsl";
@@ -204,11 +199,7 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
     std::ofstream f(page);
     f << replaceAll(replaceAll(kPage, "__DATA__", d.dump()), "__GLSL__", nlohmann::json(readText(glslPath)).dump());
   }
-  const test::CliResult res = test::runShell(
-      "timeout 120 '" + chromium +
-      "' --headless --no-sandbox --disable-gpu --use-angle=swiftshader --enable-unsafe-swiftshader "
-      "--disable-background-networking --disable-component-update --no-first-run --user-data-dir='" +
-      dir + "/profile' --dump-dom 'file://" + page + "' 2>/dev/null");
+  const test::CliResult res = test::chromiumPage(chromium, page);
   const size_t at = res.output.find("RESULT [");
   INFO("chromium exit " << res.exitCode << ": " << res.output.substr(0, 2000));
   REQUIRE(at != std::string::npos);

@@ -1,5 +1,7 @@
 // Engine conventions (prtbake/engine.h): the SH conversions and the engine file formats
-// (three.js Object JSON, Filament sh.txt and KTX 1.1 cubes, 16-bit PNG tables).
+// (three.js Object JSON, Filament sh.txt and KTX 1.1 cubes, Babylon.js .env and the
+// EXT_lights_image_based .glb, PNG images).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -57,6 +59,50 @@ uint32_t unsignedSmallFloat(float v, int mantissaBits, bool* clamped) {
   }
   if (mantissa >> mantissaBits) mantissa = 0, ++exponent;  // rounded up into the next binade
   return std::min(maxBits, (uint32_t(exponent) << mantissaBits) | mantissa);
+}
+
+// A PNG of `bitDepth`-bit samples (8 or 16) from its filtered scanlines (`raw`: per row a
+// filter byte 0, then the samples, big-endian), no colour-space chunks.
+std::string pngFromScanlines(int width, int height, int channels, int bitDepth, std::string& raw) {
+  int zlen = 0;
+  unsigned char* z = stbi_zlib_compress(reinterpret_cast<unsigned char*>(raw.data()), int(raw.size()), &zlen, 8);
+  if (!z) throw OutputError("png", "deflate failed");
+  const std::string idat(reinterpret_cast<const char*>(z), size_t(zlen));
+  std::free(z);
+  static const int kColourType[5] = {0, 0, 4, 2, 6};  // grey, grey + alpha, RGB, RGBA
+  std::string ihdr;
+  detail::appendBE(ihdr, uint32_t(width));
+  detail::appendBE(ihdr, uint32_t(height));
+  ihdr += std::string{char(bitDepth), char(kColourType[channels]), 0, 0, 0};
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  detail::appendPngChunk(png, "IHDR", ihdr);
+  detail::appendPngChunk(png, "tEXt", std::string("Software") + std::string(1, '\0') + "prtbake " + version());
+  detail::appendPngChunk(png, "IDAT", idat);
+  detail::appendPngChunk(png, "IEND", "");
+  return png;
+}
+
+void checkPngShape(int width, int height, int channels, size_t samples) {
+  if (width < 1 || height < 1 || channels < 1 || channels > 4 || samples != size_t(width) * size_t(height) * size_t(channels))
+    throw OutputError("png", "bad image dimensions");
+}
+
+// The texel of an n × n cube (DESIGN.md's faces and orientation) whose cell holds unit-ish
+// direction d: face by the major axis, then (u, v) on that face's basis.
+size_t cubeTexelOf(const std::array<CubeFaceBasis, 6>& faces, int n, const double d[3]) {
+  int face = 0;
+  double best = -1;
+  for (int f = 0; f < 6; ++f) {
+    const auto& a = faces[size_t(f)].axisN;
+    const double dn = a[0] * d[0] + a[1] * d[1] + a[2] * d[2];
+    if (dn > best) best = dn, face = f;
+  }
+  const auto& b = faces[size_t(face)];
+  const double u = (b.axisU[0] * d[0] + b.axisU[1] * d[1] + b.axisU[2] * d[2]) / best;
+  const double v = (b.axisV[0] * d[0] + b.axisV[1] * d[1] + b.axisV[2] * d[2]) / best;
+  const int col = std::clamp(int(std::floor((u + 1) / 2 * n)), 0, n - 1);
+  const int row = std::clamp(int(std::floor((v + 1) / 2 * n)), 0, n - 1);
+  return (size_t(face) * size_t(n) + size_t(row)) * size_t(n) + size_t(col);
 }
 
 }  // namespace
@@ -183,10 +229,7 @@ std::string filamentKtx1Bytes(const std::vector<CubeLevel>& levels, const Engine
 }
 
 std::string png16Bytes(int width, int height, int channels, const std::vector<uint16_t>& samples) {
-  if (width < 1 || height < 1 || channels < 1 || channels > 4 ||
-      samples.size() != size_t(width) * size_t(height) * size_t(channels))
-    throw OutputError("png", "bad image dimensions");
-  // Filter type 0 per row, big-endian samples, one zlib stream (stb_image_write's deflate).
+  checkPngShape(width, height, channels, samples.size());
   const size_t rowBytes = 1 + 2 * size_t(width) * size_t(channels);
   std::string raw(rowBytes * size_t(height), '\0');
   for (int y = 0; y < height; ++y)
@@ -195,22 +238,163 @@ std::string png16Bytes(int width, int height, int channels, const std::vector<ui
       raw[size_t(y) * rowBytes + 1 + 2 * x] = char(v >> 8);
       raw[size_t(y) * rowBytes + 2 + 2 * x] = char(v & 0xff);
     }
-  int zlen = 0;
-  unsigned char* z = stbi_zlib_compress(reinterpret_cast<unsigned char*>(raw.data()), int(raw.size()), &zlen, 8);
-  if (!z) throw OutputError("png", "deflate failed");
-  const std::string idat(reinterpret_cast<const char*>(z), size_t(zlen));
-  std::free(z);
-  static const int kColourType[5] = {0, 0, 4, 2, 6};  // grey, grey + alpha, RGB, RGBA
-  std::string ihdr;
-  detail::appendBE(ihdr, uint32_t(width));
-  detail::appendBE(ihdr, uint32_t(height));
-  ihdr += std::string{char(16), char(kColourType[channels]), 0, 0, 0};
-  std::string png("\x89PNG\r\n\x1a\n", 8);
-  detail::appendPngChunk(png, "IHDR", ihdr);
-  detail::appendPngChunk(png, "tEXt", std::string("Software") + std::string(1, '\0') + "prtbake " + version());
-  detail::appendPngChunk(png, "IDAT", idat);
-  detail::appendPngChunk(png, "IEND", "");
-  return png;
+  return pngFromScanlines(width, height, channels, 16, raw);
+}
+
+std::string png8Bytes(int width, int height, int channels, const std::vector<uint8_t>& samples) {
+  checkPngShape(width, height, channels, samples.size());
+  const size_t rowBytes = 1 + size_t(width) * size_t(channels);
+  std::string raw(rowBytes * size_t(height), '\0');
+  for (int y = 0; y < height; ++y)
+    std::memcpy(&raw[size_t(y) * rowBytes + 1], samples.data() + size_t(y) * (rowBytes - 1), rowBytes - 1);
+  return pngFromScanlines(width, height, channels, 8, raw);
+}
+
+// ---------------------------------------------------------------- Babylon.js
+
+EngineSh babylonIrradianceSh(const ShCoeffs& radiance) {
+  EngineSh e = gltfIrradianceSh(radiance);
+  for (int i : {3, 4, 7})  // the terms odd in x: Y_11 ∝ x, Y_2-2 ∝ xy, Y_21 ∝ xz
+    for (int c = 0; c < 3; ++c) e[size_t(3 * i + c)] = -e[size_t(3 * i + c)];
+  return e;
+}
+
+EngineSh babylonEnvPolynomial(const ShCoeffs& radiance) {
+  // The shader gets H = SphericalHarmonics.FromPolynomial(p), pre-scaled, and should see the
+  // irradiance harmonics over π: H_i = E_i / π in Babylon's frame. FromPolynomial is linear
+  // with the constants below (Babylon 9, Maths/sphericalPolynomial); this is its exact
+  // inverse, so the shader's harmonics come back to rounding.
+  const EngineSh e = babylonIrradianceSh(radiance);
+  const double kA = 0.376127, kAz = 0.376126, kB = 0.977204, kC = 1.16538, kD = 1.34567, kE = 0.672834;
+  EngineSh p{};
+  enum { X, Y, Z, XX, YY, ZZ, YZ, ZX, XY };  // the .env's field order
+  for (int c = 0; c < 3; ++c) {
+    auto h = [&](int i) { return e[size_t(3 * i + c)] / kPi / kPi; };  // H_i / π (FromPolynomial ends × π)
+    auto set = [&](int field, double v) { p[size_t(3 * field + c)] = v; };
+    set(Y, -h(1) / kB);
+    set(Z, h(2) / kB);
+    set(X, -h(3) / kB);
+    set(XY, h(4) / kC);
+    set(YZ, -h(5) / kC);
+    set(ZX, -h(7) / kC);
+    // l00 = kA (xx + yy) + kAz zz,  l20 = kD zz − kE (xx + yy),  l22 = kC (xx − yy)
+    const double det = kA * kD + kAz * kE;
+    const double sum = (kD * h(0) - kAz * h(6)) / det, zz = (kA * h(6) + kE * h(0)) / det, diff = h(8) / kC;
+    set(XX, (sum + diff) / 2);
+    set(YY, (sum - diff) / 2);
+    set(ZZ, zz);
+  }
+  return p;
+}
+
+std::vector<std::string> babylonRgbdFaces(int n, const std::vector<float>& rgb, long long* clamped) {
+  if (n < 1 || rgb.size() != 6 * size_t(n) * size_t(n) * 3) throw OutputError("env", "a level has the wrong number of texels");
+  // Babylon's cube for world direction b (left-handed) holds the environment's (−b.x, b.y, b.z);
+  // its images are stored bottom row first (its loader uploads them with UNPACK_FLIP_Y).
+  const auto faces = standardCubeBases();
+  std::vector<std::string> out;
+  long long over = 0;
+  std::vector<uint8_t> px(size_t(n) * size_t(n) * 4);
+  for (int f = 0; f < 6; ++f) {
+    const auto& b = faces[size_t(f)];
+    for (int row = 0; row < n; ++row)
+      for (int col = 0; col < n; ++col) {
+        const double u = 2 * (col + 0.5) / n - 1, v = 2 * (n - 1 - row + 0.5) / n - 1;
+        double d[3];
+        for (int k = 0; k < 3; ++k) d[k] = u * b.axisU[size_t(k)] + v * b.axisV[size_t(k)] + b.axisN[size_t(k)];
+        d[0] = -d[0];
+        const float* c = &rgb[3 * cubeTexelOf(faces, n, d)];
+        // toRGBD (Babylon's helperFunctions): D = saturate(floor(max(255 / max(rgb), 1)) / 255),
+        // stored rgb = saturate((c · D)^(1/2.2)); fromRGBD gives rgb^2.2 / D.
+        const double m = std::max({double(c[0]), double(c[1]), double(c[2]), 1e-7});
+        const int dByte = int(std::clamp(std::floor(std::max(255.0 / m, 1.0)), 1.0, 255.0));
+        const double D = dByte / 255.0;
+        uint8_t* o = &px[(size_t(row) * size_t(n) + size_t(col)) * 4];
+        for (int k = 0; k < 3; ++k) {
+          const double g = std::pow(std::max(0.0, double(c[k])) * D, 1 / 2.2);
+          over += g > 1 ? 1 : 0;
+          o[k] = uint8_t(std::lround(std::min(g, 1.0) * 255));
+        }
+        o[3] = uint8_t(dByte);
+      }
+    out.push_back(png8Bytes(n, n, 4, px));
+  }
+  if (clamped) *clamped += over;
+  return out;
+}
+
+std::string babylonEnvBytes(const std::vector<std::vector<std::string>>& facePngs, int width, const EngineSh& polynomial,
+                            double lodGenerationScale) {
+  nlohmann::json mipmaps = nlohmann::json::array();
+  std::string binary;
+  for (const auto& level : facePngs)
+    for (const std::string& png : level) {
+      mipmaps.push_back({{"length", png.size()}, {"position", binary.size()}});
+      binary += png;
+    }
+  static const char* kFields[9] = {"x", "y", "z", "xx", "yy", "zz", "yz", "zx", "xy"};
+  nlohmann::json irradiance = nlohmann::json::object();
+  for (int i = 0; i < 9; ++i)
+    irradiance[kFields[i]] = {polynomial[size_t(3 * i)], polynomial[size_t(3 * i + 1)], polynomial[size_t(3 * i + 2)]};
+  const nlohmann::json manifest = {
+      {"version", 2},
+      {"width", width},
+      {"imageType", "image/png"},
+      {"irradiance", irradiance},
+      {"specular", {{"mipmaps", mipmaps}, {"lodGenerationScale", lodGenerationScale}}},
+      {"generator", std::string("prtbake ") + version()}};
+  const unsigned char magic[8] = {0x86, 0x16, 0x87, 0x96, 0xf6, 0xd6, 0x96, 0x36};
+  std::string out(reinterpret_cast<const char*>(magic), 8);
+  out += manifest.dump();
+  out.push_back('\0');  // the manifest ends at a NUL; the images' positions count from after it
+  return out + binary;
+}
+
+std::string babylonIblGlbBytes(const std::vector<std::vector<std::string>>& facePngs, int width,
+                               const EngineSh& irradiance) {
+  nlohmann::json images = nlohmann::json::array(), views = nlohmann::json::array(), specular = nlohmann::json::array();
+  std::string bin;
+  for (const auto& level : facePngs) {
+    nlohmann::json faces = nlohmann::json::array();
+    for (const std::string& png : level) {
+      faces.push_back(images.size());
+      views.push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", png.size()}});
+      images.push_back({{"bufferView", views.size() - 1}, {"mimeType", "image/png"}});
+      bin += png;
+      while (bin.size() % 4) bin.push_back('\0');
+    }
+    specular.push_back(faces);
+  }
+  nlohmann::json coeffs = nlohmann::json::array();
+  for (int i = 0; i < 9; ++i) coeffs.push_back({irradiance[size_t(3 * i)], irradiance[size_t(3 * i + 1)], irradiance[size_t(3 * i + 2)]});
+  const nlohmann::json light = {{"name", "prtbake"},
+                                {"intensity", 1.0},  // Babylon's loader multiplies by it unconditionally
+                                {"rotation", {0, 0, 0, 1}},
+                                {"irradianceCoefficients", coeffs},
+                                {"specularImageSize", width},
+                                {"specularImages", specular}};
+  const nlohmann::json gltf = {
+      {"asset", {{"version", "2.0"}, {"generator", std::string("prtbake ") + version()}}},
+      {"extensionsUsed", {"EXT_lights_image_based"}},
+      {"extensions", {{"EXT_lights_image_based", {{"lights", {light}}}}}},
+      {"scene", 0},
+      {"scenes", {{{"name", "prtbake environment"}, {"extensions", {{"EXT_lights_image_based", {{"light", 0}}}}}}}},
+      {"images", images},
+      {"bufferViews", views},
+      {"buffers", {{{"byteLength", bin.size()}}}}};
+  std::string json = gltf.dump();
+  while (json.size() % 4) json.push_back(' ');
+  std::string out;
+  const uint32_t total = uint32_t(12 + 8 + json.size() + 8 + bin.size());
+  out += "glTF";
+  put32(out, 2);
+  put32(out, total);
+  put32(out, uint32_t(json.size()));
+  out += "JSON";
+  out += json;
+  put32(out, uint32_t(bin.size()));
+  out += std::string("BIN\0", 4);
+  return out + bin;
 }
 
 }  // namespace prtbake

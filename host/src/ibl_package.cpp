@@ -135,6 +135,49 @@ void filamentTarget(Package& pkg, Runtime& rt, const EnvMap& env, const ShCoeffs
       {"texels_clamped_to_format_max", clampedIbl + clampedSky}};
 }
 
+void babylonTarget(Package& pkg, Runtime& rt, const EnvMap& env, const ShCoeffs& radiance, const IblPackageOptions& o,
+                   nlohmann::json& side) {
+  // One chain for both files: every level down to 1², as a .env must hold, in the schedule of
+  // Babylon's glTF loader, lod = log2(size · α_G) · (levels − 1) / log2(size); the .env states
+  // the same lodGenerationScale (1 for a full chain), so both read level i at α_G = 2^i / size.
+  int levels = 1;
+  while ((1 << (levels - 1)) < o.size) ++levels;
+  const PrefilterResult chain = prefilter(rt, env, PrefilterLobe::Ggx, PrefilterSchedule::Babylon, o.size, levels, o.tolerance);
+  std::vector<std::vector<std::string>> pngs;
+  long long clamped = 0;
+  for (const auto& l : chain.levels) pngs.push_back(babylonRgbdFaces(l.spec.size, l.rgb, &clamped));
+  const double lodScale = double(levels - 1) / std::log2(double(o.size));
+  const EngineSh polynomial = babylonEnvPolynomial(radiance), irradiance = babylonIrradianceSh(radiance);
+  pkg.write("babylon/environment.env", babylonEnvBytes(pngs, o.size, polynomial, lodScale),
+            ".env (version 2): spherical-polynomial irradiance and the GGX chain as RGBD PNG cube faces");
+  pkg.write("babylon/environment.glb", babylonIblGlbBytes(pngs, o.size, irradiance),
+            "glTF binary whose scene carries an EXT_lights_image_based light (the same chain, irradiance SH)");
+  pkg.write("babylon/README.txt",
+            "Babylon.js lighting baked by prtbake " + std::string(version()) +
+                "\n\n"
+                "environment.env, Babylon's prefiltered environment file:\n\n"
+                "  scene.environmentTexture = new BABYLON.CubeTexture('environment.env', scene);\n"
+                "  // or BABYLON.CubeTexture.CreateFromPrefilteredData('environment.env', scene)\n\n"
+                "environment.glb, a glTF scene with only an EXT_lights_image_based light; import or append it\n"
+                "with @babylonjs/loaders (SceneLoader.AppendAsync) and the light becomes the scene's\n"
+                "environment. Both hold the same GGX chain (every level down to 1x1; level i filtered for\n"
+                "alpha_G = 2^i / size, the level Babylon's shader reads for alpha_G = roughness^2 + 0.0005)\n"
+                "as RGBD PNGs, and the irradiance: .env as the spherical polynomial, .glb as irradiance SH.\n"
+                "Frame: Babylon's default left-handed scene, into which its glTF loader brings glTF (and\n"
+                "prtbake's) direction (x, y, z) as (-x, y, z); so a model loaded from glTF sees the\n"
+                "environment as prtbake does. RGBD keeps values up to 255; brighter texels are clamped\n"
+                "(counted in ibl.json).\n",
+            "how to load it");
+  side["babylon"] = {{"irradiance_polynomial", shJson(polynomial)},
+                     {"irradiance_sh", shJson(irradiance)},
+                     {"convention", "Babylon's left-handed frame (environment x negated); .env irradiance: the "
+                                    "spherical polynomial whose FromPolynomial harmonics are E_i/pi; glTF "
+                                    "irradianceCoefficients: E_i (Condon-Shortley basis)"},
+                     {"specular", chainJson(chain)},
+                     {"lod_generation_scale", lodScale},
+                     {"channels_clamped_to_rgbd_max", clamped}};
+}
+
 void gltfTarget(Package& pkg, Runtime& rt, const EnvMap& env, const IblPackageOptions& o, nlohmann::json& side) {
   nlohmann::json chains;
   struct Cube {
@@ -230,6 +273,7 @@ const char* toString(EngineTarget t) {
   switch (t) {
     case EngineTarget::Threejs: return "threejs";
     case EngineTarget::Filament: return "filament";
+    case EngineTarget::Babylon: return "babylon";
     case EngineTarget::Gltf: return "gltf";
   }
   return "?";
@@ -242,11 +286,12 @@ std::vector<EngineTarget> parseEngineTargets(const std::string& text, const std:
     const size_t comma = text.find(',', start);
     const std::string t = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
     std::vector<EngineTarget> add;
-    if (t == "all") add = {EngineTarget::Threejs, EngineTarget::Filament, EngineTarget::Gltf};
+    if (t == "all") add = IblPackageOptions().targets;
     else if (t == "threejs") add = {EngineTarget::Threejs};
     else if (t == "filament") add = {EngineTarget::Filament};
+    else if (t == "babylon") add = {EngineTarget::Babylon};
     else if (t == "gltf") add = {EngineTarget::Gltf};
-    else throw UsageError(subject, "unknown target '" + t + "' (expected threejs|filament|gltf|all, or a comma-separated list)");
+    else throw UsageError(subject, "unknown target '" + t + "' (expected threejs|filament|babylon|gltf|all, or a comma-separated list)");
     for (EngineTarget e : add)
       if (std::find(out.begin(), out.end(), e) == out.end()) out.push_back(e);
     if (comma == std::string::npos) break;
@@ -307,6 +352,7 @@ IblPackageResult writeIblPackage(Runtime& rt, const EnvMap& env, const std::stri
       switch (t) {
         case EngineTarget::Threejs: threejsTarget(pkg, result.radiance, targets); break;
         case EngineTarget::Filament: filamentTarget(pkg, rt, env, result.radiance, o, targets); break;
+        case EngineTarget::Babylon: babylonTarget(pkg, rt, env, result.radiance, o, targets); break;
         case EngineTarget::Gltf: gltfTarget(pkg, rt, env, o, targets); break;
       }
     }

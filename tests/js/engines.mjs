@@ -7,6 +7,15 @@
 //             evaluation of its SH: π·max(0, the shader's polynomial) = irradiance at normal d),
 //             the same for the numbers of sh.txt, and every STRIDE-th texel of each level's
 //             getCubeBlob, unpacked from GL_UNSIGNED_INT_10F_11F_11F_REV.
+//   Babylon.js: babylon/environment.env through GetEnvInfo and
+//             CreateRadianceImageDataArrayBufferViews (the manifest and the image views its
+//             loader makes), UploadEnvSpherical (the polynomial it reads), then the PBR shader's
+//             computeEnvironmentIrradiance, taken from Babylon's shader source and evaluated per
+//             channel, on the harmonics the shader gets (preScaledHarmonics). The same for the
+//             light of babylon/environment.glb, its coefficients taken through the calls of
+//             Babylon's EXT_lights_image_based loader (which needs a WebGL engine to run whole).
+//             Babylon's value × π is the irradiance at world normal d: Babylon's scene is
+//             left-handed and its glTF loader puts glTF's (x, y, z) at (−x, y, z).
 // Usage: node engines.mjs PACKAGE_DIR DIRECTIONS.json STRIDE
 //   DIRECTIONS.json: [[x, y, z], ...] unit vectors.
 import { createRequire } from 'node:module';
@@ -91,5 +100,52 @@ function readFilament() {
   };
 }
 
+// --- Babylon.js ---
+async function babylon() {
+  if (!existsSync(`${dir}/babylon/environment.env`)) return;
+  const env = await import('@babylonjs/core/Misc/environmentTextureTools.js');
+  const { SphericalHarmonics, SphericalPolynomial } = await import('@babylonjs/core/Maths/sphericalPolynomial.js');
+  const { harmonicsFunctions } = await import('@babylonjs/core/Shaders/ShadersInclude/harmonicsFunctions.js');
+  // The SPHERICAL_HARMONICS branch of the shader's computeEnvironmentIrradiance, per channel.
+  const m = /#ifdef SPHERICAL_HARMONICS\s*vec3 computeEnvironmentIrradiance\(vec3 normal\) \{return ([^;]*);\}/.exec(harmonicsFunctions.shader);
+  if (!m) throw new Error('computeEnvironmentIrradiance not found in Babylon\'s shader source');
+  const shader = new Function('H', 'normal', `return ${m[1].replace(/vSpherical(\w+)/g, 'H.$1')};`);
+  const evaluate = (harmonics) => dirs.map(([x, y, z]) => {
+    const normal = { x: -x, y, z };
+    return ['x', 'y', 'z'].map((c) => Math.PI * shader({
+      L00: harmonics.l00[c], L1_1: harmonics.l1_1[c], L10: harmonics.l10[c], L11: harmonics.l11[c],
+      L2_2: harmonics.l2_2[c], L2_1: harmonics.l2_1[c], L20: harmonics.l20[c], L21: harmonics.l21[c], L22: harmonics.l22[c],
+    }, normal));
+  });
+  const bytes = new Uint8Array(readFileSync(`${dir}/babylon/environment.env`));
+  const info = env.GetEnvInfo(bytes);
+  const views = env.CreateRadianceImageDataArrayBufferViews(bytes, info);
+  const pngMagic = (v) => v[0] === 0x89 && v[1] === 0x50 && v[2] === 0x4e && v[3] === 0x47;
+  const texture = {};
+  env.UploadEnvSpherical(texture, info);
+  const gl = readFileSync(`${dir}/babylon/environment.glb`);
+  const json = JSON.parse(gl.subarray(20, 20 + gl.readUInt32LE(12)).toString('utf8'));
+  const light = json.extensions.EXT_lights_image_based.lights[json.scenes[0].extensions.EXT_lights_image_based.light];
+  // As EXT_lights_image_based._loadLightAsync: FromArray, × intensity, ÷ π, FromHarmonics.
+  const sh = SphericalHarmonics.FromArray(light.irradianceCoefficients);
+  sh.scaleInPlace(light.intensity);
+  sh.convertIrradianceToLambertianRadiance();
+  const fromGlb = SphericalPolynomial.FromHarmonics(sh);
+  out.babylon = {
+    env: {
+      version: info.version, width: info.width, imageType: info.imageType,
+      lodGenerationScale: info.specular.lodGenerationScale, levels: views.length,
+      faceSizes: views.map((level) => level.length),
+      allPng: views.every((level) => level.every(pngMagic)),
+      irradiance: evaluate(texture._sphericalPolynomial.preScaledHarmonics),
+    },
+    glb: {
+      specularImageSize: light.specularImageSize, levels: light.specularImages.length,
+      images: json.images.length, irradiance: evaluate(fromGlb.preScaledHarmonics),
+    },
+  };
+}
+
 await filament();
+await babylon();
 process.stdout.write(JSON.stringify(out) + '\n');

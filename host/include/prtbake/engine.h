@@ -11,11 +11,16 @@
 //   Filament   IndirectLight.irradiance(3, sh) / sh.txt / the KTX "sh" key: irradiance over π
 //              pre-multiplied by each basis function's signed constant, so that the shader's bare
 //              polynomial (1, y, z, x, xy, yz, 3z²−1, xz, x²−y²) gives E/π: f_i = E_i K_i / π.
-//   glTF       EXT_lights_image_based irradianceCoefficients: E_i (Condon–Shortley), as the
-//              extension's reference loader (Babylon.js) reads them.
-// The frames agree: three.js and Filament evaluate SH at world normals of a right-handed, +Y up
-// world, as glTF does, and the package's cubes are written so that world direction d shows the
-// environment's d (tests/js prove each of these with the engine's own code).
+//   glTF       E_i (Condon–Shortley): irradiance coefficients in the environment's frame.
+//   Babylon.js EXT_lights_image_based irradianceCoefficients: E_i in Babylon's frame; the .env
+//              file's "irradiance": the spherical polynomial from which Babylon's
+//              SphericalHarmonics.FromPolynomial recovers E_i / π in Babylon's frame.
+// Frames: three.js and Filament evaluate SH at world normals of a right-handed, +Y up world, as
+// glTF does, and their files are written so that world direction d shows the environment's d.
+// Babylon's scenes are left-handed: its glTF loader puts glTF (x, y, z) at Babylon (−x, y, z),
+// and its cubes and SH are looked up with Babylon directions, so its files hold the environment
+// mirrored in x (E_i negated for i = 3, 4, 7; cube faces ±X swapped and each face mirrored).
+// tests/js prove each of these with the engine's own code.
 #pragma once
 #include <array>
 #include <string>
@@ -54,18 +59,39 @@ std::string filamentKtx1Bytes(const std::vector<CubeLevel>& levels, const Engine
 // The packed GL_UNSIGNED_INT_10F_11F_11F_REV texel of an RGB value (round to nearest).
 uint32_t packR11G11B10(float r, float g, float b, bool* clamped = nullptr);
 
-// A PNG of 16-bit channels (1 to 4), rows top first, no colour-space chunks (the values are data).
+// A PNG of 16-bit (8-bit) channels, 1 to 4, rows top first, no colour-space chunks (the values
+// are data).
 std::string png16Bytes(int width, int height, int channels, const std::vector<uint16_t>& samples);
+std::string png8Bytes(int width, int height, int channels, const std::vector<uint8_t>& samples);
+
+// Babylon.js. Irradiance SH for EXT_lights_image_based (Babylon's frame) and the .env
+// polynomial (fields x, y, z, xx, yy, zz, yz, zx, xy, each RGB).
+EngineSh babylonIrradianceSh(const ShCoeffs& radiance);
+EngineSh babylonEnvPolynomial(const ShCoeffs& radiance);
+// One level of a cube (6 × n² RGB, DESIGN.md's faces) as the six RGBD 8-bit PNGs Babylon reads
+// (faces +X … −Z of its frame, bottom row first): rgb^(1/2.2) · D with D = ⌊255 / max⌋ / 255 in
+// alpha, so values up to 255 are kept; channels above are clamped and counted in *clamped.
+std::vector<std::string> babylonRgbdFaces(int n, const std::vector<float>& rgb, long long* clamped = nullptr);
+// A version 2 .env: magic, JSON manifest, NUL, then the PNGs of every level (levels from
+// `width` down to 1, faces in order). Babylon looks level i up at
+// lod = log2(width · α_G) · lodGenerationScale.
+std::string babylonEnvBytes(const std::vector<std::vector<std::string>>& facePngs, int width,
+                            const EngineSh& polynomial, double lodGenerationScale);
+// A .glb whose scene carries one EXT_lights_image_based light with these specular images
+// (level-major, faces in order) and irradiance coefficients, intensity 1.
+std::string babylonIblGlbBytes(const std::vector<std::vector<std::string>>& facePngs, int width,
+                               const EngineSh& irradiance);
 
 // `prtbake ibl`: everything an engine needs, in its conventions, in one directory.
-enum class EngineTarget { Threejs, Filament, Gltf };
+enum class EngineTarget { Threejs, Filament, Babylon, Gltf };
 const char* toString(EngineTarget t);
-// "threejs" | "filament" | "gltf" | "all" (a comma-separated list is also accepted); throws
+// "threejs" | "filament" | "babylon" | "gltf" | "all" (a comma-separated list is also accepted); throws
 // UsageError naming `subject` otherwise.
 std::vector<EngineTarget> parseEngineTargets(const std::string& text, const std::string& subject = "--target");
 
 struct IblPackageOptions {
-  std::vector<EngineTarget> targets = {EngineTarget::Threejs, EngineTarget::Filament, EngineTarget::Gltf};
+  std::vector<EngineTarget> targets = {EngineTarget::Threejs, EngineTarget::Filament, EngineTarget::Babylon,
+                                      EngineTarget::Gltf};
   int size = 256;        // base face size of the prefiltered cubes (a power of two, 16..4096)
   int skyboxSize = 0;    // Filament skybox face size (0: the base size)
   int lutSize = 128;     // the glTF target's LUTs (N × N)
