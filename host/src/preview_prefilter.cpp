@@ -57,6 +57,37 @@ void put(LinearImage& img, int x, int y, const double rgb[3]) {
 
 }  // namespace
 
+LinearImage renderSplitSumSphere(const PrefilterResult& chain, const LutResult& lut, double roughness, int size,
+                                 std::vector<bool>* mask) {
+  if (chain.levels.empty()) throw UsageError("preview", "empty chain");
+  if (size < 1 || size > 8192) throw UsageError("preview", "sphere size must be in [1, 8192]");
+  LinearImage img;
+  img.width = img.height = size;
+  img.rgb.assign(size_t(size) * size_t(size) * 3, 0.0f);
+  if (mask) mask->assign(size_t(size) * size_t(size), false);
+  const double rad = 0.5 * size;
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      const double nx = (x + 0.5 - rad) / rad, ny = -(y + 0.5 - rad) / rad, q = 1 - nx * nx - ny * ny;
+      if (q <= 0) continue;
+      const double n[3] = {nx, ny, std::sqrt(q)}, mu = n[2];
+      const double refl[3] = {2 * mu * n[0], 2 * mu * n[1], 2 * mu * n[2] - 1};
+      double rgb[3];
+      double scale = 1;
+      if (chain.options.lobe == PrefilterLobe::Lambertian) {
+        sampleLevel(chain.levels[0], n, rgb);
+      } else {
+        sampleChain(chain, refl, roughness, rgb);
+        scale = lut.options.cloth ? lutAt(lut.third, lut.size, mu, roughness)
+                                  : lutAt(lut.a, lut.size, mu, roughness) + lutAt(lut.b, lut.size, mu, roughness);
+      }
+      for (double& c : rgb) c *= scale;
+      put(img, x, y, rgb);
+      if (mask) (*mask)[size_t(y) * size_t(size) + size_t(x)] = true;
+    }
+  return img;
+}
+
 LinearImage renderPrefilterPreview(Runtime& rt, const PrefilterResult& chain, int panelWidth) {
   if (chain.levels.empty()) throw UsageError("preview", "empty chain");
   if (panelWidth < 16 || panelWidth > 4096) throw UsageError("--size", "panel width must be in [16, 4096]");
@@ -89,23 +120,15 @@ LinearImage renderPrefilterPreview(Runtime& rt, const PrefilterResult& chain, in
   const LutResult lut = computeLut(rt, lo);
   const int top = label + ph + label;
   for (int s = 0; s < kSpheres; ++s) {
-    const double r = double(s) / (kSpheres - 1), rad = 0.5 * sphere;
+    const double r = double(s) / (kSpheres - 1);
     const int x0 = s * (img.width / kSpheres) + (img.width / kSpheres - sphere) / 2;
+    std::vector<bool> on;
+    const LinearImage ball = renderSplitSumSphere(chain, lut, r, sphere, &on);
     for (int y = 0; y < sphere; ++y)
       for (int x = 0; x < sphere; ++x) {
-        const double nx = (x + 0.5 - rad) / rad, ny = -(y + 0.5 - rad) / rad, q = 1 - nx * nx - ny * ny;
-        if (q <= 0) continue;
-        const double n[3] = {nx, ny, std::sqrt(q)}, mu = n[2];
-        const double refl[3] = {2 * mu * n[0], 2 * mu * n[1], 2 * mu * n[2] - 1};
-        double rgb[3];
-        double scale = 1;
-        if (chain.options.lobe == PrefilterLobe::Lambertian) {
-          sampleLevel(chain.levels[0], n, rgb);
-        } else {
-          sampleChain(chain, refl, r, rgb);
-          scale = lo.cloth ? lutAt(lut.third, lut.size, mu, r) : lutAt(lut.a, lut.size, mu, r) + lutAt(lut.b, lut.size, mu, r);
-        }
-        for (double& c : rgb) c *= scale;
+        const size_t i = size_t(y) * size_t(sphere) + size_t(x);
+        if (!on[i]) continue;
+        const double rgb[3] = {ball.rgb[3 * i], ball.rgb[3 * i + 1], ball.rgb[3 * i + 2]};
         put(img, x0 + x, top + y, rgb);
       }
     char text[32];

@@ -13,6 +13,7 @@
 
 #include "prtbake/env_sh.h"
 #include "prtbake/envmap.h"
+#include "prtbake/lut.h"
 #include "prtbake/mesh.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/runtime.h"
@@ -133,6 +134,11 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
 // (32², 256 samples); Charlie lobes use the LUT's cloth table C instead of A + B, lambertian
 // chains show P(N) (albedo 1). R = reflect(−V, N), V = +Z.
 LinearImage renderPrefilterPreview(Runtime& rt, const PrefilterResult& chain, int panelWidth);
+// One of those spheres: radius 1 seen from +Z by an orthographic camera (V = +Z; screen right
+// +X, up +Y) filling size × size pixels, at perceptual roughness `roughness`, with A, B (or C for
+// a cloth table) from `lut`. Pixels off the sphere are 0 and false in *mask.
+LinearImage renderSplitSumSphere(const PrefilterResult& chain, const LutResult& lut, double roughness, int size,
+                                 std::vector<bool>* mask = nullptr);
 // Renders it and writes the PNG (tone map: exposure 0), stating what it shows.
 void writePrefilterPreviewPng(const std::string& path, Runtime& rt, const PrefilterResult& chain, int panelWidth,
                               const std::string& source);
