@@ -420,7 +420,73 @@ double srgb8(double v) {
   return 255.0 * (v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055);
 }
 
-// Mean |Δ| in 8-bit levels between Babylon's renders and prtbake's, for the package baked from
+// Loads a page in Chromium and parses its "RESULT {json}".
+json chromiumResult(const std::string& chromium, const std::string& page) {
+  const test::CliResult res = test::chromiumPage(chromium, page);
+  const size_t at = res.output.find("RESULT {");
+  INFO(page << ": chromium_page.mjs exit " << res.exitCode << ": " << res.output.substr(0, 2000));
+  REQUIRE(at != std::string::npos);
+  return json::parse(res.output.substr(at + 7, res.output.find('\n', at) - at - 7));
+}
+
+// prtbake's diffuse sphere: albedo 1 · E(n) / π from the SH, on the sphere and camera of
+// renderSplitSumSphere (radius 1 from +Z, orthographic, image² pixels, row 0 on top).
+LinearImage diffuseSphere(const ShCoeffs& radiance, int image) {
+  LinearImage img;
+  img.width = img.height = image;
+  img.rgb.assign(size_t(image) * size_t(image) * 3, 0.0f);
+  for (int y = 0; y < image; ++y)
+    for (int x = 0; x < image; ++x) {
+      const double nx = (x + 0.5 - image / 2.0) / (image / 2.0), ny = -(y + 0.5 - image / 2.0) / (image / 2.0);
+      if (nx * nx + ny * ny >= 1) continue;
+      double sh[9];
+      shEval(3, nx, ny, std::sqrt(1 - nx * nx - ny * ny), sh);
+      for (int c = 0; c < 3; ++c) {
+        double e = 0;
+        for (int i = 0; i < 9; ++i) e += clampedCosineFactor(i == 0 ? 0 : i < 4 ? 1 : 2) * radiance.rgb[size_t(i)][size_t(c)] * sh[i];
+        img.rgb[3 * (size_t(y) * size_t(image) + size_t(x)) + size_t(c)] = float(e / 3.14159265358979323846);
+      }
+    }
+  return img;
+}
+
+// Mean |Δ| in 8-bit levels between an engine's render `px` (RGBA floats, bottom row first, as
+// WebGL reads a target back) and prtbake's `want`, over the sphere's inner pixels (|n_xy| ≤ 0.95:
+// the silhouette of a tessellated sphere and grazing lookups left out), both scaled by the same
+// exposure, 1 / (2 × prtbake's mean on the sphere), so that a typical pixel sits mid-range (the
+// sky is HDR: unscaled, both would clamp to white; scaled by its sun, most would be black), then
+// tone-mapped as prtbake's previews. *off: the fraction of pixels more than 32 levels off in a
+// channel, which is what a misplaced label shows as where a plain background dominates the mean.
+double sphereLevels(const json& px, const LinearImage& want, double* off = nullptr) {
+  const int image = want.width;
+  REQUIRE(px.size() == size_t(image) * image * 4);
+  std::vector<std::pair<size_t, size_t>> pixels;  // (prtbake's index, the engine's)
+  double mean = 0;
+  for (int y = 0; y < image; ++y)
+    for (int x = 0; x < image; ++x) {
+      const double nx = (x + 0.5 - image / 2.0) / (image / 2.0), ny = -(y + 0.5 - image / 2.0) / (image / 2.0);
+      if (nx * nx + ny * ny > 0.95 * 0.95) continue;
+      pixels.push_back({size_t(y) * image + size_t(x), size_t(image - 1 - y) * image + size_t(x)});
+      for (int c = 0; c < 3; ++c) mean += want.rgb[3 * pixels.back().first + size_t(c)];
+    }
+  const double exposure = 1 / (2 * mean / double(3 * pixels.size()));
+  double sum = 0;
+  long long far = 0;
+  for (const auto& [mine, theirs] : pixels) {
+    double worst = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = std::abs(srgb8(px[4 * theirs + size_t(c)].get<double>() * exposure) -
+                                srgb8(want.rgb[3 * mine + size_t(c)] * exposure));
+      sum += d;
+      worst = std::max(worst, d);
+    }
+    far += worst > 32 ? 1 : 0;
+  }
+  if (off) *off = double(far) / double(pixels.size());
+  return sum / double(3 * pixels.size());
+}
+
+// Mean |Δ| in 8-bit levels (sphereLevels) between Babylon's renders and prtbake's, for the package baked from
 // `envPath` at base size size, kImage² pixels: a mirror metal sphere and a diffuse one; with
 // `controls`, also for the .env with its +Z face mirrored (metal) and with the polynomial's x
 // sign flipped (diffuse).
@@ -478,11 +544,7 @@ SphereRenders babylonSphereRenders(const std::string& chromium, const std::strin
                                                             "__ENV__", dir + "/" + name + ".env"),
                                                  "__SIZE__", std::to_string(image)),
                                       "__SHOTS__", shots);
-    const test::CliResult res = test::chromiumPage(chromium, page);
-    const size_t at = res.output.find("RESULT {");
-    INFO(name << ": chromium_page.mjs exit " << res.exitCode << ": " << res.output.substr(0, 2000));
-    REQUIRE(at != std::string::npos);
-    return json::parse(res.output.substr(at + 7, res.output.find('\n', at) - at - 7));
+    return chromiumResult(chromium, page);
   };
 
   // prtbake's own: the preview's split-sum sphere, and albedo · E(n) / π from the SH.
@@ -490,57 +552,13 @@ SphereRenders babylonSphereRenders(const std::string& chromium, const std::strin
   lutOptions.size = 64;
   lutOptions.samples = 1024;
   const LutResult lut = computeLut(test::runtime(), lutOptions);
-  std::vector<bool> on;
-  const LinearImage metal = renderSplitSumSphere(chain, lut, r, image, &on);
-  auto diffuseAt = [&](const double n[3], int c) {
-    double y[9], e = 0;
-    shEval(3, n[0], n[1], n[2], y);
-    for (int i = 0; i < 9; ++i) e += clampedCosineFactor(i == 0 ? 0 : i < 4 ? 1 : 2) * radiance.rgb[size_t(i)][size_t(c)] * y[i];
-    return e / 3.14159265358979323846;
-  };
-  // Mean |Δ| in 8-bit levels over the sphere's inner pixels, both sides scaled by the same
-  // exposure: 1 / (2 × prtbake's mean on the sphere), so a typical pixel sits mid-range (the sky
-  // is HDR: unscaled, both would clamp to white; scaled by its sun, most pixels would be black).
-  // Babylon's rows come bottom first.
-  auto meanLevels = [&](const json& got, const char* shot, double* off = nullptr) {
-    const json& px = got["shots"][shot];
-    REQUIRE(px.size() == size_t(image) * image * 4);
-    std::vector<std::array<double, 4>> pairs;  // want r, g, b and the pixel's index in Babylon's image
-    double mean = 0;
-    for (int y = 0; y < image; ++y)
-      for (int x = 0; x < image; ++x) {
-        const double nx = (x + 0.5 - image / 2.0) / (image / 2.0), ny = -(y + 0.5 - image / 2.0) / (image / 2.0);
-        if (nx * nx + ny * ny > 0.95 * 0.95) continue;
-        const double n[3] = {nx, ny, std::sqrt(1 - nx * nx - ny * ny)};
-        const size_t mine = size_t(y) * image + size_t(x), theirs = size_t(image - 1 - y) * image + size_t(x);
-        std::array<double, 4> p{0, 0, 0, double(theirs)};
-        for (int c = 0; c < 3; ++c) {
-          p[size_t(c)] = std::string(shot) == "metal" ? double(metal.rgb[3 * mine + size_t(c)]) : diffuseAt(n, c);
-          mean += p[size_t(c)];
-        }
-        pairs.push_back(p);
-      }
-    const double exposure = 1 / (2 * mean / double(3 * pairs.size()));
-    double sum = 0;
-    long long far = 0;
-    for (const auto& p : pairs) {
-      double worst = 0;
-      for (int c = 0; c < 3; ++c) {
-        const double d = std::abs(srgb8(px[4 * size_t(p[3]) + size_t(c)].get<double>() * exposure) - srgb8(p[size_t(c)] * exposure));
-        sum += d;
-        worst = std::max(worst, d);
-      }
-      far += worst > 32 ? 1 : 0;
-    }
-    if (off) *off = double(far) / double(pairs.size());
-    return sum / double(3 * pairs.size());
-  };
+  const LinearImage metal = renderSplitSumSphere(chain, lut, r, image), diffuse = diffuseSphere(radiance, image);
   const json good = render("good");
-  out.metal = meanLevels(good, "metal", &out.metalOff);
-  out.diffuse = meanLevels(good, "diffuse");
+  out.metal = sphereLevels(good["shots"]["metal"], metal, &out.metalOff);
+  out.diffuse = sphereLevels(good["shots"]["diffuse"], diffuse);
   if (controls) {
-    out.mirroredMetal = meanLevels(render("mirrored"), "metal", &out.mirroredMetalOff);
-    out.flippedDiffuse = meanLevels(render("flipped"), "diffuse");
+    out.mirroredMetal = sphereLevels(render("mirrored")["shots"]["metal"], metal, &out.mirroredMetalOff);
+    out.flippedDiffuse = sphereLevels(render("flipped")["shots"]["diffuse"], diffuse);
   }
   return out;
 }
@@ -584,6 +602,62 @@ TEST_CASE("Engines: Babylon.js shows the labelled environment's axes where prtba
   CHECK(r.diffuse <= 2.0);
   CHECK(r.metalOff <= kMisplacedFraction);
   CHECK(r.mirroredMetalOff > kMisplacedFraction);
+}
+
+// The page: three.js (tests/js/node_modules) renders a unit sphere of MeshLambertMaterial, white,
+// lit by the LightProbe that ObjectLoader makes of __PROBE__ (the package's light_probe.json),
+// seen from +Z by an orthographic camera framing it, into a float target (linear: no tone map).
+const char* kThreeRenderPage = R"(<!doctype html><html><body><canvas id="c" width="64" height="64"></canvas>
+<script type="module">
+import * as THREE from '__THREE__/build/three.module.js';
+let settle;
+window.result = new Promise((resolve) => { settle = resolve; });
+try {
+  const N = __SIZE__;
+  const renderer = new THREE.WebGLRenderer({ canvas: document.getElementById('c') });
+  const target = new THREE.WebGLRenderTarget(N, N, { type: THREE.FloatType });
+  const scene = new THREE.Scene();
+  scene.add(new THREE.ObjectLoader().parse(__PROBE__));
+  scene.add(new THREE.Mesh(new THREE.SphereGeometry(1, 256, 128), new THREE.MeshLambertMaterial({ color: 0xffffff })));
+  const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, 990, 1010);
+  camera.position.set(0, 0, 1000);
+  camera.lookAt(0, 0, 0);
+  renderer.setRenderTarget(target);
+  renderer.render(scene, camera);
+  const px = new Float32Array(N * N * 4);
+  renderer.readRenderTargetPixels(target, 0, 0, N, N, px);
+  settle('RESULT ' + JSON.stringify({ size: N, shots: { diffuse: Array.from(px) } }));
+} catch (e) { settle('ERROR ' + e + ' ' + e.stack); }
+</script></body></html>
+)";
+
+TEST_CASE("Engines: three.js renders a sphere lit by the package's LightProbe as prtbake does", "[engines][chromium]") {
+  // The same acceptance and comparison as Babylon's diffuse sphere (sphereLevels: mean |Δ| ≤ 2
+  // 8-bit levels). three.js's target holds SH only (it prefilters cubes itself), so its render is
+  // the Lambert sphere. Seen failing: the L1,-1 coefficient's sign flipped.
+  const std::string chromium = test::chromiumPath();
+  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): three.js cannot render");
+  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): three.js not installed");
+  const std::string dir = test::tempDir("engines_three_render");
+  constexpr int kImage = 96;
+  EnvProjectOptions eo;
+  eo.order = 3;
+  const ShCoeffs radiance = projectEnvironment(test::runtime(), loadEnvironment(kSky, EnvLoadOptions()), eo).radiance;
+  auto render = [&](const std::string& name, const EngineSh& sh) {
+    const std::string page = dir + "/" + name + ".html";
+    std::ofstream(page) << replaceAll(replaceAll(replaceAll(kThreeRenderPage, "__THREE__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/three"),
+                                                 "__SIZE__", std::to_string(kImage)),
+                                      "__PROBE__", threejsLightProbeJson(sh, ""));
+    return chromiumResult(chromium, page)["shots"]["diffuse"];
+  };
+  const LinearImage want = diffuseSphere(radiance, kImage);
+  EngineSh flipped = threejsSh(radiance);
+  for (int k = 3; k < 6; ++k) flipped[size_t(k)] = -flipped[size_t(k)];
+  const double good = sphereLevels(render("good", threejsSh(radiance)), want);
+  const double wrong = sphereLevels(render("flipped", flipped), want);
+  INFO("mean |delta| in 8-bit levels: " << good << "; L1,-1 sign flipped: " << wrong);
+  CHECK(good <= 2.0);
+  CHECK(wrong > 2.0);
 }
 
 TEST_CASE("Engines: the glTF layout's KTX2 cubes and 16-bit tables", "[engines]") {
