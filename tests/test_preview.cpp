@@ -7,7 +7,13 @@
 #include <cmath>
 #include <fstream>
 
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+
 #include "prtbake/env_sh.h"
+#include "prtbake/exr.h"
 #include "prtbake/preview.h"
 #include "prtbake/sh.h"
 #include "test_common.h"
@@ -75,6 +81,29 @@ TEST_CASE("LUT preview: row 0 at the bottom, column 0 at the left", "[preview]")
   REQUIRE(img.at(40 + 60, 24 + 32)[0] > img.at(40 + 2, 24 + 32)[0]);
   const int ox = 40 + 64 + 80;
   REQUIRE(img.at(ox + 32, 24 + 2)[0] > img.at(ox + 32, 24 + 61)[0]);
+}
+
+TEST_CASE("readExr: a data window away from the origin reads back pixel for pixel", "[preview][exr]") {
+  // The OpenEXR library is given the buffer through Slice::Make with the data window (a base
+  // pointer computed by hand for a window far from the origin lies outside the allocation:
+  // a fuzzing finding). Seen failing: reading the window as if it started at (0, 0).
+  const std::string dir = test::tempDir("readexr_window");
+  const Imath::Box2i window(Imath::V2i(-7, 1000), Imath::V2i(-7 + 4, 1000 + 2));  // 5 × 3 at (−7, 1000)
+  Imf::Header header(Imath::Box2i(Imath::V2i(0, 0), Imath::V2i(1, 1)), window);
+  header.channels().insert("R", Imf::Channel(Imf::FLOAT));
+  std::vector<float> r(15);
+  for (size_t i = 0; i < r.size(); ++i) r[i] = float(i) * 0.5f + 1;
+  {
+    Imf::OutputFile file((dir + "/w.exr").c_str(), header);
+    Imf::FrameBuffer fb;
+    fb.insert("R", Imf::Slice::Make(Imf::FLOAT, r.data(), window));
+    file.setFrameBuffer(fb);
+    file.writePixels(3);
+  }
+  const ExrImage img = readExr(dir + "/w.exr");
+  REQUIRE((img.width == 5 && img.height == 3));
+  REQUIRE(img.channel("R"));
+  CHECK(*img.channel("R") == r);
 }
 
 TEST_CASE("PNG output: decodable, states the tone map, identical bytes on rerun", "[preview]") {

@@ -90,11 +90,11 @@ ExrImage readExr(const std::string& path) {
       out.channelNames.push_back(it.name());
       out.channels.emplace_back(size_t(out.width) * size_t(out.height));
     }
-    for (size_t i = 0; i < out.channels.size(); ++i) {
-      char* base = reinterpret_cast<char*>(out.channels[i].data()) -
-                   (size_t(dw.min.y) * size_t(out.width) + size_t(dw.min.x)) * sizeof(float);
-      fb.insert(out.channelNames[i], Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * size_t(out.width)));
-    }
+    // Slice::Make places the data window's origin at the buffer's start (the library does the
+    // offset arithmetic; a base pointer computed here would lie outside the allocation).
+    for (size_t i = 0; i < out.channels.size(); ++i)
+      fb.insert(out.channelNames[i], Imf::Slice::Make(Imf::FLOAT, out.channels[i].data(), dw, sizeof(float),
+                                                      sizeof(float) * size_t(out.width)));
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
   } catch (const Error&) {
