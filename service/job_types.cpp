@@ -37,17 +37,26 @@ json hashList(const std::vector<std::string>& files) {
   return inputs;
 }
 
-// --- env: environment map → SH coefficients (prtbake env) ---
-ExecResult runEnv(const Job& job, ExecContext& ctx) {
+// The job's input environment, with its layout, clamp_invalid and yaw keys applied; the load's
+// seconds in *loadSeconds. `compact` keeps 8-bit inputs as bytes (env jobs only read texels once).
+EnvMap loadJobEnvironment(const Job& job, bool compact, double* loadSeconds) {
   const json& p = job.params;
   EnvLoadOptions loadOptions;
   loadOptions.layout = p["layout"].get<std::string>();
   loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
-  loadOptions.compact = true;
+  loadOptions.compact = compact;
   const auto t0 = std::chrono::steady_clock::now();
   EnvMap env = loadEnvironment(job.input, loadOptions);
   env.yawDegrees = p["yaw"].get<double>();
-  const double loadSeconds = secondsSince(t0);
+  *loadSeconds = secondsSince(t0);
+  return env;
+}
+
+// --- env: environment map → SH coefficients (prtbake env) ---
+ExecResult runEnv(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  double loadSeconds = 0;
+  EnvMap env = loadJobEnvironment(job, true, &loadSeconds);
 
   EnvProjectOptions options;
   options.order = p["order"].get<int>();
@@ -245,13 +254,8 @@ ExecResult runPrefilter(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const PrefilterOptions options = prefilterOptionsFrom(p);
   validatePrefilterOptions(options);
-  EnvLoadOptions loadOptions;
-  loadOptions.layout = p["layout"].get<std::string>();
-  loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
-  const auto t0 = std::chrono::steady_clock::now();
-  EnvMap env = loadEnvironment(job.input, loadOptions);
-  env.yawDegrees = p["yaw"].get<double>();
-  const double loadSeconds = secondsSince(t0);
+  double loadSeconds = 0;
+  const EnvMap env = loadJobEnvironment(job, false, &loadSeconds);
   const PrefilterResult r = prefilterEnvironment(ctx.runtime(), env, options);
   const json meta = {{"job", job.id}, {"parameters", p}, {"timings_seconds", {{"load", loadSeconds}}}};
   writePrefilterFiles(r, env, ctx.wants("json") ? ctx.output("json") : std::string(),
@@ -285,13 +289,8 @@ IblPackageOptions iblOptionsFrom(const json& p) {
 ExecResult runIbl(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const IblPackageOptions o = iblOptionsFrom(p);
-  EnvLoadOptions loadOptions;
-  loadOptions.layout = p["layout"].get<std::string>();
-  loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
-  const auto t0 = std::chrono::steady_clock::now();
-  EnvMap env = loadEnvironment(job.input, loadOptions);
-  env.yawDegrees = p["yaw"].get<double>();
-  const double loadSeconds = secondsSince(t0);
+  double loadSeconds = 0;
+  const EnvMap env = loadJobEnvironment(job, false, &loadSeconds);
   const json meta = {{"job", job.id}, {"parameters", p}, {"timings_seconds", {{"load", loadSeconds}}}};
   const IblPackageResult r = writeIblPackage(ctx.runtime(), env, ctx.output("dir"), o, meta.dump());
   ExecResult result;
