@@ -1,5 +1,6 @@
 // Preview images: orientation of the lat-long panels, the LUT axes, PNG output
 // (decodable, tone map stated, deterministic bytes).
+#include <algorithm>
 #include <catch2/catch.hpp>
 
 #include <stb/stb_image.h>
@@ -81,6 +82,20 @@ TEST_CASE("LUT preview: row 0 at the bottom, column 0 at the left", "[preview]")
   REQUIRE(img.at(40 + 60, 24 + 32)[0] > img.at(40 + 2, 24 + 32)[0]);
   const int ox = 40 + 64 + 80;
   REQUIRE(img.at(ox + 32, 24 + 2)[0] > img.at(ox + 32, 24 + 61)[0]);
+}
+
+TEST_CASE("drawText: bytes outside printable ASCII draw as '?'", "[preview]") {
+  // Labels can come from files (a LUT's channel names). stb_easy_font indexes its glyph table by
+  // (char - 32), so a byte >= 128 read as a negative char indexed before the table (a fuzzing
+  // finding, UBSan). Seen failing before the fix: UBSan's report under the sanitizer build.
+  LinearImage a, b;
+  a.width = b.width = 40, a.height = b.height = 16;
+  a.rgb.assign(size_t(a.width) * a.height * 3, 0.0f);
+  b.rgb = a.rgb;
+  drawText(a, 2, 2, std::string("x\x91\x01y"), 1.0f);
+  drawText(b, 2, 2, "x??y", 1.0f);
+  REQUIRE(a.rgb == b.rgb);
+  REQUIRE(std::count(a.rgb.begin(), a.rgb.end(), 1.0f) > 0);
 }
 
 TEST_CASE("readExr: a data window away from the origin reads back pixel for pixel", "[preview][exr]") {

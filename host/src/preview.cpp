@@ -83,7 +83,11 @@ LinearImage renderEnvPreview(const EnvMap* env, const ShCoeffs& radiance, int pa
 
 void drawText(LinearImage& image, int x, int y, const std::string& text, float value, int scale) {
   std::vector<char> buffer(text.size() * 300 + 64);
+  // stb_easy_font indexes its glyph table by (char - 32): anything outside printable ASCII (a
+  // channel name from a file, say) becomes '?'.
   std::string copy = text;
+  for (char& c : copy)
+    if (c != '\n' && (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126)) c = '?';
   unsigned char color[4] = {255, 255, 255, 255};
   const int quads = stb_easy_font_print(0, 0, copy.data(), color, buffer.data(), int(buffer.size()));
   for (int q = 0; q < quads; ++q) {
