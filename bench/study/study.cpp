@@ -50,7 +50,14 @@ struct Timing {
 
 // Runs f `reps` times (after one untimed warm-up when warm is set); medians.
 Timing timeIt(int reps, bool warm, const std::function<void()>& f) {
-  if (warm) f();
+  if (warm) {
+    // Runs of a few milliseconds vary by tens of per cent from one to the next (thread
+    // wake-ups, launches): take the median of enough of them to fill about half a second.
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    const double once = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    reps = std::clamp(int(0.5 / std::max(once, 1e-6)), reps, 25);
+  }
   std::vector<double> w, c;
   for (int i = 0; i < reps; ++i) {
     const double c0 = cpuNow();

@@ -16,15 +16,16 @@
 //      bounds the 95th-percentile error; where errors change sign it overestimates it
 //      (by 2× on the GGX table, measured, docs/accuracy.md).
 //   3. The count M = N (e(N)/E)^{1/p} that brings that below E is extrapolated from the
-//      pilot once the pilot is within a factor 8 of it, then rounded up to a quarter
-//      octave, 2^m × {1, 5/4, 3/2, 7/4} (at such counts the error falls steadily; at
-//      arbitrary counts it can stay above the lower power of two's), and capped at
-//      --max-samples.
+//      pilot once the pilot is within a factor 16 of it, then rounded to the nearest
+//      quarter octave, 2^m × {1, 5/4, 3/2, 7/4} (at such counts the error falls steadily;
+//      at arbitrary counts it can stay above the lower power of two's; nearest, not next:
+//      e(N) overestimates by about 2×, so the at most 12 % of count given up rounding down
+//      costs no accuracy, measured), and capped at --max-samples.
 //   4. The product runs once, uniformly, with M samples: the same computation as
 //      `--samples M`.
 //
 // The pilot costs about 2·N_last per pilot item against M per item of the run (N_last
-// ≥ M/8, so a few per cent for 128² tables and meshes of thousands of vertices), and at
+// ≥ M/16, so a few per cent for 128² tables and meshes of thousands of vertices), and at
 // least 48 samples per pilot item: at the loosest tolerances of small meshes it is then
 // the larger share. Items that need no
 // sampling (vertices no triangle can occlude, unshadowed transport) take their closed
