@@ -1,5 +1,5 @@
-// Engine packages (`prtbake ibl`), read back by the engines' own code: three.js, Filament and
-// Babylon.js from npm (tests/js/engines.mjs, pinned in tests/js/package-lock.json), the KTX2 cubes by
+// Engine packages (`prtbake ibl`), read back by the engines' own code: three.js, Filament,
+// Babylon.js and the glTF-Sample-Viewer from npm (tests/js/engines.mjs, pinned in tests/js/package-lock.json), the KTX2 cubes by
 // ktx-parse (tests/js/ktx2_read.mjs), the 16-bit tables by stb_image.
 #include <stb/stb_image.h>
 
@@ -32,7 +32,7 @@ bool nodeReady() {
   const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/";
   return test::runShell("command -v node").exitCode == 0 && test::fileExists(js + "three/package.json") &&
          test::fileExists(js + "filament/package.json") && test::fileExists(js + "ktx-parse/package.json") &&
-         test::fileExists(js + "@babylonjs/core/package.json");
+         test::fileExists(js + "@babylonjs/core/package.json") && test::fileExists(js + "@khronosgroup/gltf-viewer/package.json");
 }
 
 std::string readText(const std::string& path) {
@@ -263,6 +263,12 @@ std::string replaceAll(std::string s, const std::string& from, const std::string
   return s;
 }
 
+// A page template with each placeholder replaced.
+std::string fillPage(std::string text, const std::vector<std::pair<std::string, std::string>>& values) {
+  for (const auto& [from, to] : values) text = replaceAll(text, from, to);
+  return text;
+}
+
 TEST_CASE("Engines: Babylon.js in Chromium reads the .env cube prtbake prefiltered, texel by texel", "[engines][chromium]") {
   // Babylon's texels, as its loader decodes them, against the chain prtbake prefiltered, looked up
   // where Babylon's frame puts them (x negated) in the GL orientation Babylon samples. Tolerance:
@@ -450,6 +456,22 @@ LinearImage diffuseSphere(const ShCoeffs& radiance, int image) {
   return img;
 }
 
+// sphereLevels' exposure for `want`: 1 / (2 × its mean over the sphere's inner pixels). Pages
+// whose engines write 8-bit output apply it before writing, so that the bytes keep precision.
+double sphereExposure(const LinearImage& want) {
+  const int image = want.width;
+  double mean = 0;
+  long long count = 0;
+  for (int y = 0; y < image; ++y)
+    for (int x = 0; x < image; ++x) {
+      const double nx = (x + 0.5 - image / 2.0) / (image / 2.0), ny = -(y + 0.5 - image / 2.0) / (image / 2.0);
+      if (nx * nx + ny * ny > 0.95 * 0.95) continue;
+      for (int c = 0; c < 3; ++c) mean += want.rgb[3 * (size_t(y) * image + size_t(x)) + size_t(c)];
+      count += 3;
+    }
+  return 1 / (2 * mean / double(count));
+}
+
 // Mean |Δ| in 8-bit levels between an engine's render `px` (RGBA floats, bottom row first, as
 // WebGL reads a target back) and prtbake's `want`, over the sphere's inner pixels (|n_xy| ≤ 0.95:
 // the silhouette of a tessellated sphere and grazing lookups left out), both scaled by the same
@@ -461,15 +483,12 @@ double sphereLevels(const json& px, const LinearImage& want, double* off = nullp
   const int image = want.width;
   REQUIRE(px.size() == size_t(image) * image * 4);
   std::vector<std::pair<size_t, size_t>> pixels;  // (prtbake's index, the engine's)
-  double mean = 0;
   for (int y = 0; y < image; ++y)
     for (int x = 0; x < image; ++x) {
       const double nx = (x + 0.5 - image / 2.0) / (image / 2.0), ny = -(y + 0.5 - image / 2.0) / (image / 2.0);
-      if (nx * nx + ny * ny > 0.95 * 0.95) continue;
-      pixels.push_back({size_t(y) * image + size_t(x), size_t(image - 1 - y) * image + size_t(x)});
-      for (int c = 0; c < 3; ++c) mean += want.rgb[3 * pixels.back().first + size_t(c)];
+      if (nx * nx + ny * ny <= 0.95 * 0.95) pixels.push_back({size_t(y) * image + size_t(x), size_t(image - 1 - y) * image + size_t(x)});
     }
-  const double exposure = 1 / (2 * mean / double(3 * pixels.size()));
+  const double exposure = sphereExposure(want);
   double sum = 0;
   long long far = 0;
   for (const auto& [mine, theirs] : pixels) {
@@ -484,6 +503,30 @@ double sphereLevels(const json& px, const LinearImage& want, double* off = nullp
   }
   if (off) *off = double(far) / double(pixels.size());
   return sum / double(3 * pixels.size());
+}
+
+// The chain with one face (+X, −X, +Y, −Y, +Z, −Z = 0..5) mirrored left to right in every level:
+// the deliberately wrong export of the render tests.
+PrefilterResult mirroredFace(PrefilterResult chain, size_t face) {
+  for (auto& l : chain.levels) {
+    const size_t n = size_t(l.spec.size);
+    for (size_t r = 0; r < n; ++r)
+      for (size_t c = 0; c < n / 2; ++c)
+        for (size_t k = 0; k < 3; ++k)
+          std::swap(l.rgb[3 * ((face * n + r) * n + c) + k], l.rgb[3 * ((face * n + r) * n + n - 1 - c) + k]);
+  }
+  return chain;
+}
+
+// prtbake's white metal sphere with the split sum's second factor 1: Filament and the glTF-Sample-
+// Viewer compensate multiple scattering (Filament: Fr = P · E / dfg.y; the viewer: FssEss +
+// FmsEms), which for a white metal (f0 = 1) leaves the prefiltered radiance P(R) itself.
+LinearImage whiteMetalSphere(const PrefilterResult& chain, double roughness, int image) {
+  LutResult unit;
+  unit.size = 2;
+  unit.a.assign(4, 1.0f);
+  unit.b.assign(4, 0.0f);
+  return renderSplitSumSphere(chain, unit, roughness, image);
 }
 
 // Mean |Δ| in 8-bit levels (sphereLevels) between Babylon's renders and prtbake's, for the package baked from
@@ -518,14 +561,7 @@ SphereRenders babylonSphereRenders(const std::string& chromium, const std::strin
   };
   writeEnv(dir + "/good.env", chain, babylonEnvPolynomial(radiance));
   if (controls) {
-    PrefilterResult mirrored = chain;  // face +Z (4) mirrored left to right in every level
-    for (auto& l : mirrored.levels) {
-      const size_t n = size_t(l.spec.size);
-      for (size_t r = 0; r < n; ++r)
-        for (size_t c = 0; c < n / 2; ++c)
-          for (size_t k = 0; k < 3; ++k)
-            std::swap(l.rgb[3 * ((4 * n + r) * n + c) + k], l.rgb[3 * ((4 * n + r) * n + n - 1 - c) + k]);
-    }
+    const PrefilterResult mirrored = mirroredFace(chain, 4);
     writeEnv(dir + "/mirrored.env", mirrored, babylonEnvPolynomial(radiance));
     EngineSh flipped = babylonEnvPolynomial(radiance);
     for (int k = 0; k < 3; ++k) flipped[size_t(k)] = -flipped[size_t(k)];  // the polynomial's x
@@ -635,50 +671,27 @@ FilamentRenders filamentSphereRenders(const std::string& chromium, const std::st
   };
   writeKtx(dir + "/good.ktx", chain);
   if (controls) {
-    PrefilterResult mirrored = chain;  // face +Z (4) mirrored left to right in every level
-    for (auto& l : mirrored.levels) {
-      const size_t n = size_t(l.spec.size);
-      for (size_t r = 0; r < n; ++r)
-        for (size_t c = 0; c < n / 2; ++c)
-          for (size_t k = 0; k < 3; ++k)
-            std::swap(l.rgb[3 * ((4 * n + r) * n + c) + k], l.rgb[3 * ((4 * n + r) * n + n - 1 - c) + k]);
-    }
+    const PrefilterResult mirrored = mirroredFace(chain, 4);
     writeKtx(dir + "/mirrored.ktx", mirrored);
   }
-  // prtbake's sphere with the split sum's second factor 1: Filament compensates multiple
-  // scattering (its Fr = P · E / dfg.y), which for a white metal (f0 = 1, E = dfg.y) leaves the
-  // prefiltered radiance P(R) itself. (Its dominant-direction bend, mix(R, N, α²), moves R by
-  // α² = 0.7 % at this roughness: within the tolerance.)
-  LutResult unit;
-  unit.size = 2;
-  unit.a.assign(4, 1.0f);
-  unit.b.assign(4, 0.0f);
-  const LinearImage want = renderSplitSumSphere(chain, unit, out.roughness, image);
+  // (Filament's dominant-direction bend, mix(R, N, α²), moves R by α² = 0.7 % at level 1's
+  // roughness: within the tolerance.)
+  const LinearImage want = whiteMetalSphere(chain, out.roughness, image);
   // Filament writes linear 8-bit: the light's intensity is the comparison's exposure, so that
   // the read-back bytes / 255 are the exposed values and sphereLevels' exposure cancels.
-  double mean = 0;
-  int count = 0;
-  for (int y = 0; y < image; ++y)
-    for (int x = 0; x < image; ++x) {
-      const double nx = (x + 0.5 - image / 2.0) / (image / 2.0), ny = -(y + 0.5 - image / 2.0) / (image / 2.0);
-      if (nx * nx + ny * ny > 0.95 * 0.95) continue;
-      for (int c = 0; c < 3; ++c) mean += want.rgb[3 * (size_t(y) * image + size_t(x)) + size_t(c)];
-      count += 3;
-    }
-  const double exposure = 1 / (2 * mean / count);
+  const double exposure = sphereExposure(want);
   const std::string pageText = readText(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/filament_render.html");
   auto render = [&](const std::string& name) {
     char intensity[32], shots[96];
     std::snprintf(intensity, sizeof intensity, "%.17g", exposure);
     std::snprintf(shots, sizeof shots, "[['metal', %.17g, 1]]", out.roughness);
     const std::string page = dir + "/" + name + ".html";
-    std::ofstream(page) << replaceAll(
-        replaceAll(replaceAll(replaceAll(replaceAll(pageText, "__FILAMENT__",
-                                                    std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/filament/filament.js"),
-                                         "__IBL__", "file://" + dir + "/" + name + ".ktx"),
-                              "__SIZE__", std::to_string(image)),
-                   "__INTENSITY__", intensity),
-        "__SHOTS__", shots);
+    std::ofstream(page) << fillPage(pageText, {{"__JS__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js"},
+                                               {"__FILAMENT__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/filament/filament.js"},
+                                               {"__IBL__", "file://" + dir + "/" + name + ".ktx"},
+                                               {"__SIZE__", std::to_string(image)},
+                                               {"__INTENSITY__", intensity},
+                                               {"__SHOTS__", shots}});
     json px = chromiumResult(chromium, page)["shots"]["metal"];
     for (auto& v : px) v = v.get<double>() / 255.0 / exposure;
     return px;
@@ -720,6 +733,90 @@ TEST_CASE("Engines: Filament shows the labelled environment's axes where prtbake
   INFO("roughness " << r.roughness << "; mean |delta| in 8-bit levels: metal " << r.metal << ", +Z face mirrored "
                     << r.mirroredMetal << "; pixels off by > 32 levels: " << r.metalOff << ", +Z face mirrored "
                     << r.mirroredMetalOff);
+  constexpr double kMisplacedFraction = 0.001;  // as for Babylon
+  CHECK(r.metal <= 2.0);
+  CHECK(r.metalOff <= kMisplacedFraction);
+  CHECK(r.mirroredMetalOff > kMisplacedFraction);
+}
+
+// Mean |Δ| in 8-bit levels (sphereLevels) between the glTF-Sample-Viewer's render of a white
+// metal mirror sphere (tests/js/gltf_viewer_render.html) and prtbake's, for the glTF target's GGX
+// chain (the Linear schedule, default levels) baked from `envPath` at base size `size`; with
+// `controls`, also for the chain with its +Z face mirrored. At roughness 0 the viewer's lod,
+// roughness · (mips − 1), is 0: level 0, as prtbake's preview reads.
+SphereRenders gltfViewerSphereRenders(const std::string& chromium, const std::string& envPath, bool controls, int size,
+                                      int image) {
+  SphereRenders out;
+  const std::string dir = test::tempDir("engines_gltf_viewer_render");
+  const EnvMap env = loadEnvironment(envPath, EnvLoadOptions());
+  PrefilterOptions po;
+  po.schedule = PrefilterSchedule::Linear;
+  po.baseSize = size;
+  const PrefilterResult chain = prefilterEnvironment(test::runtime(), env, po);
+  PrefilterOptions lo;  // the diffuse cube the page also binds (a metal does not read it)
+  lo.lobe = PrefilterLobe::Lambertian;
+  lo.baseSize = 16;
+  lo.levels = 1;
+  std::ofstream(dir + "/lambertian.ktx2", std::ios::binary) << prefilterKtx2Bytes(prefilterEnvironment(test::runtime(), env, lo), false);
+  std::ofstream(dir + "/good.ktx2", std::ios::binary) << prefilterKtx2Bytes(chain, false);
+  if (controls) std::ofstream(dir + "/mirrored.ktx2", std::ios::binary) << prefilterKtx2Bytes(mirroredFace(chain, 4), false);
+  const LinearImage want = whiteMetalSphere(chain, 0.0, image);
+  // The viewer writes 8-bit pow(color · exposure, 1/2.2): the comparison's exposure is applied
+  // there, and undone here with the encoding.
+  const double exposure = sphereExposure(want);
+  const std::string pageText = readText(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/gltf_viewer_render.html");
+  auto render = [&](const std::string& name) {
+    char exposureText[32];
+    std::snprintf(exposureText, sizeof exposureText, "%.17g", exposure);
+    const std::string page = dir + "/" + name + ".html";
+    std::ofstream(page) << fillPage(pageText, {{"__JS__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js"},
+                                               {"__VIEWER__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/@khronosgroup/gltf-viewer/dist"},
+                                               {"__GGX__", "file://" + dir + "/" + name + ".ktx2"},
+                                               {"__LAMBERTIAN__", "file://" + dir + "/lambertian.ktx2"},
+                                               {"__MIPS__", std::to_string(chain.levels.size())},
+                                               {"__SIZE__", std::to_string(image)},
+                                               {"__EXPOSURE__", exposureText},
+                                               {"__SHOTS__", "[['metal', 0, 1]]"}});
+    json px = chromiumResult(chromium, page)["shots"]["metal"];
+    for (auto& v : px) v = std::pow(v.get<double>() / 255.0, 2.2) / exposure;
+    return px;
+  };
+  out.metal = sphereLevels(render("good"), want, &out.metalOff);
+  if (controls) out.mirroredMetal = sphereLevels(render("mirrored"), want, &out.mirroredMetalOff);
+  return out;
+}
+
+TEST_CASE("Engines: the glTF-Sample-Viewer renders a sphere lit by the package's KTX2 cubes as prtbake does", "[engines][chromium]") {
+  // The acceptance of the Babylon renders (sphereLevels: mean |Δ| ≤ 2 8-bit levels, rim left
+  // out), for a mirror: they differ by half-float storage, the viewer's 8-bit gamma-2.2 output
+  // and filtering on the GPU. Seen failing: the +Z face mirrored, which moves the sun's small
+  // reflection: 2.4 % of the pixels more than 32 levels off (none for the package; the mean,
+  // 2.03, is dominated by the sky around it).
+  const std::string chromium = test::chromiumPath();
+  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): the viewer cannot run");
+  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): the viewer not installed");
+  const SphereRenders r = gltfViewerSphereRenders(chromium, kSky, true, 64, 96);
+  INFO("mean |delta| in 8-bit levels: mirror metal " << r.metal << ", +Z face mirrored " << r.mirroredMetal
+                                                     << "; pixels off by > 32 levels: " << r.metalOff << ", +Z face mirrored "
+                                                     << r.mirroredMetalOff);
+  constexpr double kMisplacedFraction = 0.001;  // as for the labelled environment
+  CHECK(r.metal <= 2.0);
+  CHECK(r.metalOff <= kMisplacedFraction);
+  CHECK(r.mirroredMetalOff > kMisplacedFraction);
+}
+
+TEST_CASE("Engines: the glTF-Sample-Viewer shows the labelled environment's axes where prtbake does", "[engines][chromium][data]") {
+  // OpenEXR's Orientation map through the same mirror render at 256², as for Babylon. Seen
+  // failing: its +Z face mirrored.
+  const std::string chromium = test::chromiumPath();
+  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): the viewer cannot run");
+  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): the viewer not installed");
+  const std::string map = test::dataFile("envmaps/openexr/OrientationCube.exr");
+  PRTBAKE_SKIP_IF_NO_DATA(map);
+  const SphereRenders r = gltfViewerSphereRenders(chromium, map, true, 256, 256);
+  INFO("mean |delta| in 8-bit levels: mirror metal " << r.metal << ", +Z face mirrored " << r.mirroredMetal
+                                                     << "; pixels off by > 32 levels: " << r.metalOff << ", +Z face mirrored "
+                                                     << r.mirroredMetalOff);
   constexpr double kMisplacedFraction = 0.001;  // as for Babylon
   CHECK(r.metal <= 2.0);
   CHECK(r.metalOff <= kMisplacedFraction);
