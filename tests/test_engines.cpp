@@ -535,6 +535,7 @@ LinearImage whiteMetalSphere(const PrefilterResult& chain, double roughness, int
 // sign flipped (diffuse).
 struct SphereRenders {
   double metal = 0, diffuse = 0, mirroredMetal = 0, flippedDiffuse = 0;
+  double roughMetal = 0;  // the glTF-Sample-Viewer's: a white metal at level 1's roughness
   // The fraction of the metal sphere's pixels that differ by more than 32 levels in a channel:
   // what a misplaced label shows as, where the mean is dominated by a plain background.
   double metalOff = 0, mirroredMetalOff = 0;
@@ -765,6 +766,8 @@ SphereRenders gltfViewerSphereRenders(const std::string& chromium, const std::st
   // there, and undone here with the encoding.
   const double exposure = sphereExposure(want);
   const std::string pageText = readText(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/gltf_viewer_render.html");
+  char rough[32];  // level 1's roughness: the viewer's lod is then exactly 1
+  std::snprintf(rough, sizeof rough, "%.17g", chain.levels[1].spec.roughness);
   auto render = [&](const std::string& name) {
     char exposureText[32];
     std::snprintf(exposureText, sizeof exposureText, "%.17g", exposure);
@@ -776,13 +779,16 @@ SphereRenders gltfViewerSphereRenders(const std::string& chromium, const std::st
                                                {"__MIPS__", std::to_string(chain.levels.size())},
                                                {"__SIZE__", std::to_string(image)},
                                                {"__EXPOSURE__", exposureText},
-                                               {"__SHOTS__", "[['metal', 0, 1]]"}});
-    json px = chromiumResult(chromium, page)["shots"]["metal"];
-    for (auto& v : px) v = std::pow(v.get<double>() / 255.0, 2.2) / exposure;
-    return px;
+                                               {"__SHOTS__", std::string("[['metal', 0, 1], ['rough', ") + rough + ", 1]]"}});
+    json shots = chromiumResult(chromium, page)["shots"];
+    for (auto& [name, px] : shots.items())
+      for (auto& v : px) v = std::pow(v.get<double>() / 255.0, 2.2) / exposure;
+    return shots;
   };
-  out.metal = sphereLevels(render("good"), want, &out.metalOff);
-  if (controls) out.mirroredMetal = sphereLevels(render("mirrored"), want, &out.mirroredMetalOff);
+  const json good = render("good");
+  out.metal = sphereLevels(good["metal"], want, &out.metalOff);
+  out.roughMetal = sphereLevels(good["rough"], whiteMetalSphere(chain, chain.levels[1].spec.roughness, image));
+  if (controls) out.mirroredMetal = sphereLevels(render("mirrored")["metal"], want, &out.mirroredMetalOff);
   return out;
 }
 
@@ -796,11 +802,13 @@ TEST_CASE("Engines: the glTF-Sample-Viewer renders a sphere lit by the package's
   if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): the viewer cannot run");
   if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): the viewer not installed");
   const SphereRenders r = gltfViewerSphereRenders(chromium, kSky, true, 64, 96);
-  INFO("mean |delta| in 8-bit levels: mirror metal " << r.metal << ", +Z face mirrored " << r.mirroredMetal
+  INFO("mean |delta| in 8-bit levels: mirror metal " << r.metal << ", level 1's roughness " << r.roughMetal
+                                                     << ", +Z face mirrored " << r.mirroredMetal
                                                      << "; pixels off by > 32 levels: " << r.metalOff << ", +Z face mirrored "
                                                      << r.mirroredMetalOff);
   constexpr double kMisplacedFraction = 0.001;  // as for the labelled environment
   CHECK(r.metal <= 2.0);
+  CHECK(r.roughMetal <= 2.0);
   CHECK(r.metalOff <= kMisplacedFraction);
   CHECK(r.mirroredMetalOff > kMisplacedFraction);
 }
