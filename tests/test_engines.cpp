@@ -619,6 +619,66 @@ TEST_CASE("Engines: Babylon.js renders spheres lit by the package as prtbake's p
   CHECK(r.flippedDiffuse > kMeanLevels);
 }
 
+TEST_CASE("Engines: Babylon.js reads level i of the .env at the roughness prtbake gives level i", "[engines][chromium]") {
+  // The roughness schedule as Babylon's own shader applies it: an .env whose level i holds
+  // (i, 1, 0) everywhere lights white metal spheres at each level's roughness, and the render's
+  // red / green is the lod Babylon read, per pixel. The spherical polynomial is zero: Babylon adds
+  // a term from it to rough metals (measured: with the sky's polynomial red / green drifts from
+  // 1.5 to 5 over a sphere at roughness 0.5; see docs/engines.md). Tolerance 0.05 lod: RGBD byte
+  // rounding (~0.5 % of the value) plus Babylon's minimum α_G (0.0005: +0.023 lod at level 1).
+  // Seen failing: the same chain under Babylon's default lodGenerationScale, 0.8.
+  const std::string chromium = test::chromiumPath();
+  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Babylon cannot run");
+  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Babylon.js not installed");
+  constexpr double kLodTolerance = 0.05;
+  constexpr int kSize = 64, kImage = 48;
+  const std::string dir = test::tempDir("engines_babylon_lod");
+  PrefilterOptions po;
+  po.schedule = PrefilterSchedule::Babylon;
+  po.baseSize = kSize;
+  po.levels = 7;  // 64² down to 1²: the full chain, lodGenerationScale 1
+  PrefilterResult coded = prefilterEnvironment(test::runtime(), loadEnvironment(kSky, EnvLoadOptions()), po);
+  std::vector<std::vector<std::string>> pngs;
+  for (size_t i = 0; i < coded.levels.size(); ++i) {
+    auto& l = coded.levels[i];
+    for (size_t t = 0; t < l.rgb.size(); t += 3) l.rgb[t] = float(i), l.rgb[t + 1] = 1, l.rgb[t + 2] = 0;
+    pngs.push_back(babylonRgbdFaces(l.spec.size, l.rgb));
+  }
+  std::string shots = "[";
+  for (int i = 1; i <= 5; ++i) {
+    char shot[64];
+    std::snprintf(shot, sizeof shot, "['l%d', 1, %.17g],", i, coded.levels[size_t(i)].spec.roughness);
+    shots += shot;
+  }
+  shots += "]";
+  // The worst |red / green − i| over the inner pixels of each level's sphere.
+  auto worstLodError = [&](const std::string& name, double lodGenerationScale) {
+    std::ofstream(dir + "/" + name + ".env", std::ios::binary) << babylonEnvBytes(pngs, kSize, EngineSh{}, lodGenerationScale);
+    const std::string page = dir + "/" + name + ".html";
+    std::ofstream(page) << fillPage(kBabylonRenderPage, {{"__CORE__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/@babylonjs/core"},
+                                                         {"__ENV__", dir + "/" + name + ".env"},
+                                                         {"__SIZE__", std::to_string(kImage)},
+                                                         {"__SHOTS__", shots}});
+    const json result = chromiumResult(chromium, page);
+    double worst = 0;
+    for (int i = 1; i <= 5; ++i) {
+      const json& px = result["shots"]["l" + std::to_string(i)];
+      for (int y = 0; y < kImage; ++y)
+        for (int x = 0; x < kImage; ++x) {
+          const double nx = (x + 0.5 - kImage / 2.0) / (kImage / 2.0), ny = (y + 0.5 - kImage / 2.0) / (kImage / 2.0);
+          if (nx * nx + ny * ny > 0.95 * 0.95) continue;
+          const size_t j = 4 * (size_t(y) * kImage + size_t(x));
+          worst = std::max(worst, std::abs(px[j].get<double>() / px[j + 1].get<double>() - i));
+        }
+    }
+    return worst;
+  };
+  const double good = worstLodError("good", 1.0), wrong = worstLodError("scale08", 0.8);
+  INFO("worst |lod read - level|: " << good << "; under lodGenerationScale 0.8: " << wrong);
+  CHECK(good <= kLodTolerance);
+  CHECK(wrong > kLodTolerance);
+}
+
 TEST_CASE("Engines: Babylon.js shows the labelled environment's axes where prtbake does", "[engines][chromium][data]") {
   // OpenEXR's Orientation map (each direction labelled) through the same renders, at 256² so
   // that its labels survive: a mirror sphere shows the whole environment, so a face or axis
