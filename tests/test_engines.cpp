@@ -35,6 +35,12 @@ bool nodeReady() {
          test::fileExists(js + "@babylonjs/core/package.json") && test::fileExists(js + "@khronosgroup/gltf-viewer/package.json");
 }
 
+// Declares `var`, Chromium's path, or skips the test case without Chromium or the npm engines.
+#define PRTBAKE_CHROMIUM_OR_SKIP(var, engine)                                                             \
+  const std::string var = test::chromiumPath();                                                           \
+  if (var.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): " engine " cannot run"); \
+  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): " engine " not installed")
+
 std::string readText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
@@ -275,9 +281,7 @@ TEST_CASE("Engines: Babylon.js in Chromium reads the .env cube prtbake prefilter
   // the RGBD byte's rounding, ((g + ½/255)^2.2 − g^2.2) / D for the stored g = (v D)^(1/2.2), plus
   // the half-float texture's 2^-11 relative. Values above RGBD's 255 are left out (clamped). Seen
   // failing: face +X mirrored, and the images stored top row first (rows flipped).
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Babylon cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Babylon.js not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "Babylon");
   const std::string dir = test::tempDir("engines_babylon_env");
   REQUIRE(test::runCli("ibl '" + kSky + "' -o '" + dir + "/pkg' --target babylon" + kPackageArgs).exitCode == 0);
   const std::string page = dir + "/env.html";
@@ -536,6 +540,7 @@ LinearImage whiteMetalSphere(const PrefilterResult& chain, double roughness, int
 struct SphereRenders {
   double metal = 0, diffuse = 0, mirroredMetal = 0, flippedDiffuse = 0;
   double roughMetal = 0;  // the glTF-Sample-Viewer's: a white metal at level 1's roughness
+  double roughness = 0;   // Filament's: the roughness of its metal sphere
   // The fraction of the metal sphere's pixels that differ by more than 32 levels in a channel:
   // what a misplaced label shows as, where the mean is dominated by a plain background.
   double metalOff = 0, mirroredMetalOff = 0;
@@ -607,9 +612,7 @@ TEST_CASE("Engines: Babylon.js renders spheres lit by the package as prtbake's p
   // its RGBD decode and half-float cube, and filtering on the GPU. Seen failing: the .env with
   // its +Z face mirrored (metal sphere), and with the polynomial's x sign flipped (diffuse).
   constexpr double kMeanLevels = 2.0;
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Babylon cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Babylon.js not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "Babylon");
   const SphereRenders r = babylonSphereRenders(chromium, kSky, true, 64, 96);
   INFO("mean |delta| in 8-bit levels: mirror metal " << r.metal << ", diffuse " << r.diffuse << "; +Z face mirrored, metal "
                                                      << r.mirroredMetal << "; polynomial x flipped, diffuse " << r.flippedDiffuse);
@@ -627,9 +630,7 @@ TEST_CASE("Engines: Babylon.js reads level i of the .env at the roughness prtbak
   // 1.5 to 5 over a sphere at roughness 0.5; see docs/engines.md). Tolerance 0.05 lod: RGBD byte
   // rounding (~0.5 % of the value) plus Babylon's minimum α_G (0.0005: +0.023 lod at level 1).
   // Seen failing: the same chain under Babylon's default lodGenerationScale, 0.8.
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Babylon cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Babylon.js not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "Babylon");
   constexpr double kLodTolerance = 0.05;
   constexpr int kSize = 64, kImage = 48;
   const std::string dir = test::tempDir("engines_babylon_lod");
@@ -683,9 +684,7 @@ TEST_CASE("Engines: Babylon.js shows the labelled environment's axes where prtba
   // OpenEXR's Orientation map (each direction labelled) through the same renders, at 256² so
   // that its labels survive: a mirror sphere shows the whole environment, so a face or axis
   // misplaced by the export moves labels. Seen failing: its +Z face mirrored.
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Babylon cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Babylon.js not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "Babylon");
   const std::string map = test::dataFile("envmaps/openexr/OrientationCube.exr");
   PRTBAKE_SKIP_IF_NO_DATA(map);
   const SphereRenders r = babylonSphereRenders(chromium, map, true, 256, 256);
@@ -701,19 +700,17 @@ TEST_CASE("Engines: Babylon.js shows the labelled environment's axes where prtba
   CHECK(r.mirroredMetalOff > kMisplacedFraction);
 }
 
-// Mean |Δ| in 8-bit levels (sphereLevels) between Filament's renders of a white metal sphere and
-// prtbake's, for the Filament chain (the package's: the Filament schedule, default levels) baked
-// from `envPath` at base size `size`, at level 1's roughness (Filament's lod (levels − 1)·r(2 − r)
-// is then exactly 1, and prtbake's preview reads level 1 alone); with `controls`, also for the
-// chain with its +Z face mirrored.
 // Filament's floor on perceptual roughness in its mobile/WebGL materials (MIN_PERCEPTUAL_ROUGHNESS).
 constexpr double kFilamentMinRoughness = 0.089;
-struct FilamentRenders {
-  double roughness = 0, metal = 0, mirroredMetal = 0, metalOff = 0, mirroredMetalOff = 0;
-};
-FilamentRenders filamentSphereRenders(const std::string& chromium, const std::string& envPath, bool controls, int size,
-                                      int image, double roughness = -1) {
-  FilamentRenders out;
+
+// Mean |Δ| in 8-bit levels (sphereLevels) between Filament's renders of a white metal sphere and
+// prtbake's, for the Filament chain (the package's: the Filament schedule, default levels) baked
+// from `envPath` at base size `size`, at `roughness`, by default level 1's (Filament's lod
+// (levels − 1)·r(2 − r) is then exactly 1, and prtbake's preview reads level 1 alone); with
+// `controls`, also for the chain with its +Z face mirrored.
+SphereRenders filamentSphereRenders(const std::string& chromium, const std::string& envPath, bool controls, int size,
+                                    int image, double roughness = -1) {
+  SphereRenders out;
   const std::string dir = test::tempDir("engines_filament_render");
   PrefilterOptions po;
   po.schedule = PrefilterSchedule::Filament;
@@ -771,10 +768,8 @@ TEST_CASE("Engines: Filament renders a sphere lit by the package's ibl.ktx as pr
   // measured). What remains: R11G11B10F storage, Filament's 8-bit linear output and filtering
   // on the GPU. Seen failing: the +Z face mirrored (16.4).
   constexpr double kMeanLevels = 2.0;
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Filament cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Filament not installed");
-  const FilamentRenders r = filamentSphereRenders(chromium, kSky, true, 64, 288);
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "Filament");
+  const SphereRenders r = filamentSphereRenders(chromium, kSky, true, 64, 288);
   INFO("roughness " << r.roughness << "; mean |delta| in 8-bit levels: metal " << r.metal << ", +Z face mirrored "
                     << r.mirroredMetal);
   CHECK(r.metal <= kMeanLevels);
@@ -785,12 +780,10 @@ TEST_CASE("Engines: Filament shows the labelled environment's axes where prtbake
   // OpenEXR's Orientation map through the same render at base size 256 (level 1: 128², r =
   // 0.134), as for Babylon: a misplaced face or axis moves labels. Seen failing: its +Z face
   // mirrored.
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): Filament cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): Filament not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "Filament");
   const std::string map = test::dataFile("envmaps/openexr/OrientationCube.exr");
   PRTBAKE_SKIP_IF_NO_DATA(map);
-  const FilamentRenders r = filamentSphereRenders(chromium, map, true, 256, 288, kFilamentMinRoughness);
+  const SphereRenders r = filamentSphereRenders(chromium, map, true, 256, 288, kFilamentMinRoughness);
   INFO("roughness " << r.roughness << "; mean |delta| in 8-bit levels: metal " << r.metal << ", +Z face mirrored "
                     << r.mirroredMetal << "; pixels off by > 32 levels: " << r.metalOff << ", +Z face mirrored "
                     << r.mirroredMetalOff);
@@ -858,9 +851,7 @@ TEST_CASE("Engines: the glTF-Sample-Viewer renders a sphere lit by the package's
   // and filtering on the GPU. Seen failing: the +Z face mirrored, which moves the sun's small
   // reflection: 2.4 % of the pixels more than 32 levels off (none for the package; the mean,
   // 2.03, is dominated by the sky around it).
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): the viewer cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): the viewer not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "the viewer");
   const SphereRenders r = gltfViewerSphereRenders(chromium, kSky, true, 64, 96);
   INFO("mean |delta| in 8-bit levels: mirror metal " << r.metal << ", level 1's roughness " << r.roughMetal
                                                      << ", +Z face mirrored " << r.mirroredMetal
@@ -876,9 +867,7 @@ TEST_CASE("Engines: the glTF-Sample-Viewer renders a sphere lit by the package's
 TEST_CASE("Engines: the glTF-Sample-Viewer shows the labelled environment's axes where prtbake does", "[engines][chromium][data]") {
   // OpenEXR's Orientation map through the same mirror render at 256², as for Babylon. Seen
   // failing: its +Z face mirrored.
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): the viewer cannot run");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): the viewer not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "the viewer");
   const std::string map = test::dataFile("envmaps/openexr/OrientationCube.exr");
   PRTBAKE_SKIP_IF_NO_DATA(map);
   const SphereRenders r = gltfViewerSphereRenders(chromium, map, true, 256, 256);
@@ -922,9 +911,7 @@ TEST_CASE("Engines: three.js renders a sphere lit by the package's LightProbe as
   // The same acceptance and comparison as Babylon's diffuse sphere (sphereLevels: mean |Δ| ≤ 2
   // 8-bit levels). three.js's target holds SH only (it prefilters cubes itself), so its render is
   // the Lambert sphere. Seen failing: the L1,-1 coefficient's sign flipped.
-  const std::string chromium = test::chromiumPath();
-  if (chromium.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): three.js cannot render");
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): three.js not installed");
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "three.js");
   const std::string dir = test::tempDir("engines_three_render");
   constexpr int kImage = 96;
   EnvProjectOptions eo;
