@@ -67,8 +67,9 @@ ToleranceReport runTolerancePilot(const PilotEvaluate& evaluate, size_t stride, 
   // counts the error falls steadily (measured on the BRDF tables), where at arbitrary counts
   // between two powers it can stay above the lower power's (9056 samples against 8192).
   // Nearest rather than next: the prediction already overestimates the 95th-percentile error
-  // (e(N) assumes errors of one sign), by about 2x on the GGX table and the open cavity
-  // (measured, docs/accuracy.md), against at most 12 % (in count) that rounding down gives up.
+  // (e(N) assumes errors of one sign): by about 2x on the GGX table (docs/accuracy.md); on the
+  // open cavity at E = 1e-3 it asks for 4,333 samples where 2,048 already bring 97.6 % of the
+  // vertices within E (measured). Rounding down gives up at most 12 % of the count.
   double lower = std::max(double(granularity), 1.0);
   while (lower * 2 <= predicted) lower *= 2;
   const double quarter = std::max(lower / 4, double(granularity));
