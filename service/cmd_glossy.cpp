@@ -30,20 +30,29 @@ std::string mib(double bytes) {
   return b;
 }
 
-// --cpca K,P | --cpca-error E (nullopt-like: clusters = 0 and targetError = 0 when absent).
-bool cpcaOptions(const CommandLine& cl, CpcaOptions& co, const std::string& kp = "cpca", const std::string& err = "cpca-error") {
-  if (cl.has(kp) && cl.has(err)) throw UsageError("--" + err, "give --" + kp + " K,P or --" + err + " E, not both");
-  if (cl.has(kp)) {
-    const std::vector<double> v = cl.getDoubles(kp, 2);
-    if (!(v[0] >= 1 && v[0] <= 65536 && v[0] == std::floor(v[0])) || !(v[1] >= 0 && v[1] <= 64 && v[1] == std::floor(v[1])))
-      throw UsageError("--" + kp, "expected K,P with K in [1, 65536] clusters and P in [0, 64] vectors");
+// --cpca-weights / --weights float32|int8.
+int cpcaWeightBits(const CommandLine& cl, const std::string& name) {
+  return cl.getChoice(name, "float32", {"float32", "int8"}) == "int8" ? 8 : 32;
+}
+
+// --cpca K,P | --cpca-error E [--cpca-weights W] (nullopt-like: clusters = 0 and targetError = 0 when absent).
+bool cpcaOptions(const CommandLine& cl, CpcaOptions& co) {
+  if (cl.has("cpca") && cl.has("cpca-error")) throw UsageError("--cpca-error", "give --cpca K,P or --cpca-error E, not both");
+  co.weightBits = cpcaWeightBits(cl, "cpca-weights");
+  if (cl.has("cpca")) {
+    const std::vector<double> v = cl.getDoubles("cpca", 2);
+    if (!(v[0] >= 1 && v[0] <= 65536 && v[0] == std::floor(v[0])) ||
+        !(v[1] >= 0 && v[1] <= kMaxCpcaVectors && v[1] == std::floor(v[1])))
+      throw UsageError("--cpca", "expected K,P with K in [1, 65536] clusters and P in [0, " +
+                                     std::to_string(kMaxCpcaVectors) + "] vectors");
     co.clusters = int(v[0]), co.vectors = int(v[1]);
     return true;
   }
-  if (cl.has(err)) {
-    co.targetError = cl.getDouble(err, 0.02, 1e-6, 0.999);
+  if (cl.has("cpca-error")) {
+    co.targetError = cl.getDouble("cpca-error", 0.02, 1e-6, 0.999);
     return true;
   }
+  if (cl.has("cpca-weights")) throw UsageError("--cpca-weights", "goes with --cpca K,P or --cpca-error E");
   return false;
 }
 
@@ -51,9 +60,9 @@ std::string cpcaLine(const CpcaResult& c) {
   char line[256];
   std::snprintf(line, sizeof line,
                 "cpca: K = %d clusters, P = %d vectors, relative RMS error %.4f total (per vertex: RMS %.4f, max %.4f), "
-                "%.1fx smaller than float32 matrices, %d iterations, %.2f s",
+                "%.1fx smaller than float32 matrices (%s weights), %d iterations, %.2f s",
                 c.clusters, c.vectors, c.totalError, c.rmsVertexError, c.maxVertexError, c.compressionRatio(),
-                c.iterations, c.seconds);
+                c.weightBits == 8 ? "int8" : "float32", c.iterations, c.seconds);
   return line;
 }
 
@@ -235,11 +244,12 @@ int runCpca(const CommandLine& cl) {
     throw UsageError("--target-error", "give --clusters/--vectors or --target-error, not both");
   if (cl.has("clusters")) {
     co.clusters = int(cl.getInt("clusters", 16, 1, 65536));
-    co.vectors = int(cl.getInt("vectors", 8, 0, 64));
+    co.vectors = int(cl.getInt("vectors", 8, 0, kMaxCpcaVectors));
   } else {
     co.targetError = cl.getDouble("target-error", 0.02, 1e-6, 0.999);
   }
   co.iterations = int(cl.getInt("iterations", 10, 1, 1000));
+  co.weightBits = cpcaWeightBits(cl, "weights");
   co.threads = int(cl.getInt("threads", 0, 0, 1024));
   // float32 bakes are mapped in place (no copy); float16 ones are read and widened.
   std::unique_ptr<GlossyNpyMap> map;
@@ -275,16 +285,17 @@ int runCpca(const CommandLine& cl) {
 PRTBAKE_COMMAND(Command{
     "cpca", "compress glossy transfer matrices with clustered PCA",
     "prtbake cpca MATRICES.npy -o OUT.npz (--clusters K --vectors P | --target-error E) [--iterations N]\n"
-    "       [--threads N]\n"
+    "       [--weights float32|int8] [--threads N]\n"
     "Clusters the vertices' matrices (Sloan et al. 2003): K clusters of P PCA vectors each; per vertex a\n"
-    "cluster id and P weights. --target-error E picks the smallest (K, P) of a fixed ladder whose total\n"
-    "relative RMS error is at most E. Writes OUT.npz (means, basis, clusters, weights, error, orders) and\n"
-    "OUT.json (K, P, errors, compression). See docs/glossy.md.",
+    "cluster id and P weights. --target-error E picks the (K, P) of a fixed ladder with the fewest bytes\n"
+    "whose total relative RMS error is at most E. Writes OUT.npz (means, basis, clusters, weights, error,\n"
+    "orders; weight_scales with int8 weights) and OUT.json (K, P, errors, compression). See docs/glossy.md.",
     {{"output", true, "the .npz output (-o); the JSON sidecar goes beside it"},
      {"clusters", true, "K clusters"},
      {"vectors", true, "P PCA vectors per cluster"},
      {"target-error", true, "the largest total relative RMS error (default 0.02)"},
      {"iterations", true, "the most clustering iterations (default 10)"},
+     {"weights", true, "float32 (default) | int8: one byte per weight, a float32 scale per cluster and vector"},
      {"threads", true, "host threads (default: all cores)"}},
     1, 1, runCpca});
 

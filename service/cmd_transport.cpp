@@ -29,7 +29,7 @@ int runTransport(const CommandLine& cl) {
   const std::string out = cl.get("output");
   if (out.empty()) throw UsageError("transport", "missing -o OUT.npy");
   if (cl.getChoice("transfer", "vector", {"vector", "matrix"}) == "matrix") return runGlossyTransport(cl);
-  for (const char* name : {"order-out", "order-in", "dtype", "brdf", "cpca", "cpca-error"})
+  for (const char* name : {"order-out", "order-in", "dtype", "brdf", "cpca", "cpca-error", "cpca-weights"})
     if (cl.has(name)) throw UsageError(std::string("--") + name, "only applies to --transfer matrix");
   TransportOptions o;
   o.mode = parseTransportMode(cl.get("mode", "shadowed"));
@@ -105,7 +105,7 @@ PRTBAKE_COMMAND(Command{
     "       [--bounce-tolerance E] [--albedo A]\n"
     "       prtbake transport MESH -o OUT.npy --transfer matrix [--mode M] [--order N | --order-out N --order-in N]\n"
     "       [--samples N] [--seed S] [--bounces B] [--dtype float32|float16] [--brdf ggx:R[:F0]|lambertian[:A]]\n"
-    "       [--cpca K,P | --cpca-error E]\n"
+    "       [--cpca K,P | --cpca-error E] [--cpca-weights float32|int8]\n"
     "Writes OUT.npy (float32 [V, n^2], or [V, 3, n^2] for coloured interreflection) and OUT.json.\n"
     "--transfer matrix: glossy transfer matrices [V, n_out^2, n_in^2] (docs/glossy.md), streamed to OUT.npy\n"
     "by vertex blocks; --cpca also writes OUT.cpca.npz.",
@@ -129,7 +129,8 @@ PRTBAKE_COMMAND(Command{
      {"dtype", true, "matrix: float32 (default) | float16"},
      {"brdf", true, "matrix: write exit-radiance matrices for ggx:R[:F0] or lambertian[:A]"},
      {"cpca", true, "matrix: also compress with K,P (clusters, PCA vectors) into OUT.cpca.npz"},
-     {"cpca-error", true, "matrix: also compress, choosing K and P for this relative RMS error"}},
+     {"cpca-error", true, "matrix: also compress, choosing K and P for this relative RMS error"},
+     {"cpca-weights", true, "matrix: CPCA weights float32 (default) | int8 (with a scale per cluster and vector)"}},
     1, 1, runTransport});
 
 }  // namespace

@@ -57,6 +57,7 @@ CpcaOptions cpcaOptionsFrom(const json& p) {
   } else {
     c.targetError = p["cpca_error"].get<double>();
   }
+  c.weightBits = p["cpca_weights"].get<std::string>() == "int8" ? 8 : 32;
   return c;
 }
 
@@ -195,8 +196,9 @@ JobType glossyJobType() {
             number("roughness", 0.5, 0.05, 1.0),
             number("f0", 0.04, 0.0, 1.0),
             integer("cpca_clusters", nullptr, 1, 65536),
-            integer("cpca_vectors", nullptr, 0, 64),
-            number("cpca_error", nullptr, 1e-6, 0.999)};
+            integer("cpca_vectors", nullptr, 0, kMaxCpcaVectors),
+            number("cpca_error", nullptr, 1e-6, 0.999),
+            choice("cpca_weights", "float32", {"float32", "int8"})};
   t.check = [](const json& raw, const json& p) {
     std::vector<std::pair<std::string, std::string>> problems;
     const bool outputsObject = raw.contains("outputs") && raw["outputs"].is_object();

@@ -167,6 +167,9 @@ TEST_CASE("CLI: bad options and inputs give one error line and no output", "[glo
       {"--brdf phong:3", 2, "ggx:R[:F0]"},
       {"--cpca 4", 2, "--cpca"},
       {"--cpca 4,4 --cpca-error 0.1", 2, "not both"},
+      {"--cpca 4,129", 2, "P in [0, 128]"},
+      {"--cpca-weights int8", 2, "goes with --cpca K,P or --cpca-error E"},
+      {"--cpca 4,4 --cpca-weights int4", 2, "float32|int8"},
       {"--bounces 2", 2, "interreflected"},
   };
   for (const Case& c : cases) {
@@ -209,6 +212,7 @@ TEST_CASE("Jobs: a split glossy job merges to the one-process bytes and reruns s
               {"samples", 128},
               {"cpca_clusters", 3},
               {"cpca_vectors", 2},
+              {"cpca_weights", "int8"},
               {"outputs", {{"npy", out + ".npy"}, {"json", out + ".json"}, {"cpca", out + ".cpca.npz"}}}};
     if (split) j["split"] = true;
     return j;
@@ -224,6 +228,8 @@ TEST_CASE("Jobs: a split glossy job merges to the one-process bytes and reruns s
   REQUIRE(r.exitCode == 0);
   CHECK(test::readText(dir + "/s/g.npy") == test::readText(dir + "/w/g.npy"));
   CHECK(test::readText(dir + "/s/g.cpca.npz") == test::readText(dir + "/w/g.cpca.npz"));
+  int oo = 0, oi = 0, ch = 0;
+  CHECK(readCpcaNpz(dir + "/s/g.cpca.npz", &oo, &oi, &ch).weightBits == 8);
   r = test::runCli("run " + q(dir + "/jobs.json"));
   CHECK(r.exitCode == 0);
   CHECK(r.output.find("[skipped] split (up to date)") != std::string::npos);
@@ -386,6 +392,65 @@ TEST_CASE("CPCA recovers clusters of affine subspaces exactly, and the ladder me
   CHECK_THROWS_AS(cpcaCompress(x.data(), V, D, CpcaOptions{}), UsageError);
 }
 
+TEST_CASE("CPCA with int8 weights: each weight within half a step, and the .npz reads back bit for bit",
+          "[glossy][cpca]") {
+  // Synthetic matrices (D = 36, not symmetric) whose norms span 1e-3 to 1. q_vp =
+  // round(w_vp / (c_kp t_v)): every weight lies within half its step of the float weight,
+  // and, the basis being orthonormal and the float residual orthogonal to it, the squared
+  // error is the float error plus Σ (w8 − w32)² exactly (Pythagoras).
+  const size_t V = 500, D = 36, P = 6;
+  std::vector<float> x(V * D);
+  for (size_t v = 0; v < V; ++v) {
+    const double size = std::pow(10.0, -3.0 * double(v % 7) / 6.0);
+    for (size_t d = 0; d < D; ++d) x[v * D + d] = float(size * (1.0 + std::sin(0.37 * double(v) * (1 + d % 5) + 0.5 * d)));
+  }
+  CpcaOptions o;
+  o.clusters = 2, o.vectors = int(P);
+  const CpcaResult f = cpcaCompress(x.data(), V, D, o);
+  o.weightBits = 8;
+  const CpcaResult c = cpcaCompress(x.data(), V, D, o);
+  REQUIRE(c.weightBits == 8);
+  REQUIRE(c.weightScales.size() == 2 * P);
+  REQUIRE(c.vertexScales.size() == V);
+  REQUIRE(c.clusterOf == f.clusterOf);  // quantisation comes after the clustering
+  double worstStep = 0, e8 = 0, e32 = 0, dw = 0;
+  for (size_t v = 0; v < V; ++v) {
+    double n2 = 0;
+    for (size_t d = 0; d < D; ++d) n2 += double(x[v * D + d]) * x[v * D + d];
+    e8 += n2 * c.vertexError[v] * c.vertexError[v], e32 += n2 * f.vertexError[v] * f.vertexError[v];
+    for (size_t p = 0; p < P; ++p) {
+      const double step = double(c.weightScales[size_t(c.clusterOf[v]) * P + p]) * c.vertexScales[v];
+      const double d = double(c.weights[v * P + p]) - f.weights[v * P + p];
+      worstStep = std::max(worstStep, std::abs(d) / step);
+      dw += d * d;
+    }
+  }
+  INFO("largest |w8 - w32| / step " << worstStep << "; squared errors int8 " << e8 << ", float32 " << e32
+                                    << " + weights " << dw);
+  CHECK(worstStep <= 0.5 + 1e-3);  // rounding to the nearest code, float slack
+  CHECK(dw > 0);
+  CHECK(e8 == Approx(e32 + dw).epsilon(1e-3));  // kPythagoras: float32 per-vertex errors
+  // 1 byte per weight plus 4 per vertex scale, against 4 per float weight.
+  CHECK(c.storedBytes() == Approx(f.storedBytes() - double(V) * P * 3 + 4.0 * (V + 2 * P)));
+  // The archive: numpy's int8 array and both scales; read back bit for bit.
+  const std::string dir = test::tempDir("cpca_int8");
+  test::writeText(dir + "/c.npz", cpcaNpzBytes(c, 3, 2, 1));
+  int oo = 0, oi = 0, ch = 0;
+  const CpcaResult back = readCpcaNpz(dir + "/c.npz", &oo, &oi, &ch);
+  CHECK(back.weightBits == 8);
+  CHECK(back.weights == c.weights);
+  CHECK(back.weightScales == c.weightScales);
+  CHECK(back.vertexScales == c.vertexScales);
+  test::writeText(dir + "/f.npz", cpcaNpzBytes(f, 3, 2, 1));
+  CHECK(readCpcaNpz(dir + "/f.npz", &oo, &oi, &ch).weightBits == 32);
+  // Vertex scales that disagree with their shape are refused with the file named.
+  CpcaResult badScales = c;
+  badScales.vertexScales.push_back(1.0f);
+  test::writeText(dir + "/bad.npz", cpcaNpzBytes(badScales, 3, 2, 1));
+  CHECK_THROWS_WITH(readCpcaNpz(dir + "/bad.npz", &oo, &oi, &ch),
+                    Catch::Contains("bad.npz") && Catch::Contains("vertex_scales"));
+}
+
 TEST_CASE("CPCA of mary.obj at order 5: compression and error", "[glossy][cpca][data]") {
   // The acceptance figure asked for ≥ 20× at ≤ 2 % relative RMS. Measured on the shadowed
   // bake (1024 samples): K = 32, P = 8 is 19.7× at 11.9 %; the error is the visibility's
@@ -411,5 +476,22 @@ TEST_CASE("CPCA of mary.obj at order 5: compression and error", "[glossy][cpca][
                                  << c.seconds << " s");
     CHECK(c.compressionRatio() > (mode == TransportMode::Shadowed ? 19.5 : 20.0));
     CHECK(c.totalError < (mode == TransportMode::Shadowed ? kShadowedError : kUnshadowedError));
+    if (mode != TransportMode::Shadowed) continue;
+    // int8 weights: the shadowed matrices span exactly 81 dimensions (M is linear in the
+    // visibility's SH to order 9), and one byte per weight buys enough of them: K = 1, P = 72
+    // measured 24.2x at 1.57 % total (per-vertex RMS 4.5 %); the acceptance is ≥ 20x at ≤ 2 %.
+    co.clusters = 1, co.vectors = 72, co.weightBits = 8;
+    const CpcaResult q8 = cpcaCompress(r.matrices.data(), mary.vertexCount(), 625, co);
+    INFO("int8: K 1 P 72: " << q8.compressionRatio() << "x, total " << q8.totalError << ", per-vertex RMS "
+                            << q8.rmsVertexError << ", " << q8.seconds << " s");
+    CHECK(q8.compressionRatio() >= 20.0);
+    CHECK(q8.totalError <= 0.02);
+    // The ladder finds it (or cheaper) from the target alone.
+    CpcaOptions t;
+    t.targetError = 0.02, t.weightBits = 8;
+    const CpcaResult l = cpcaCompress(r.matrices.data(), mary.vertexCount(), 625, t);
+    INFO("ladder: K " << l.clusters << " P " << l.vectors << ": " << l.compressionRatio() << "x, total " << l.totalError);
+    CHECK(l.compressionRatio() >= q8.compressionRatio());
+    CHECK(l.totalError <= 0.02);
   }
 }

@@ -1,6 +1,6 @@
 // The documented GLSL (docs/glsl/prt_glossy.glsl) run in headless Chromium (WebGL 2 on
 // SwiftShader) for known inputs, against prtbake's own shading of the same bake:
-// uncompressed matrices and the CPCA form.
+// uncompressed matrices and the CPCA form (int8 weights).
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -48,7 +48,7 @@ try {
     'uniform float uW[' + (NC * P) + '];\nout vec4 o;\n' +
     'void main() { int c = int(gl_FragCoord.x); int row = int(gl_FragCoord.y); vec3 t[PRT_N_OUT];\n' +
     '  if (row == 0) prtTransfer(uM, uVert[c], uLight, t);\n' +
-    '  else { float w[64]; for (int p = 0; p < 64; ++p) w[p] = p < ' + P + ' ? uW[c * ' + P + ' + p] : 0.0;\n' +
+    '  else { float w[PRT_CPCA_VECTORS]; for (int p = 0; p < PRT_CPCA_VECTORS; ++p) w[p] = p < ' + P + ' ? uW[c * ' + P + ' + p] : 0.0;\n' +
     '         prtTransferCpca(uU, uClu[c], ' + P + ', w, t); }\n' +
     '  o = vec4(prtGlossyShade(t, uG, normalize(uN[c]), normalize(uV[c]), uAlb[c], uNorm[c] == 1), 1.0); }\n';
   function shader(type, src) {
@@ -111,7 +111,8 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
   // and of the SH recurrence (measured 2.9e-7); kGlslTol = 1e-4 × (1 + |value|) leaves room
   // for other GPUs' sqrt and division. Seen failing: the GLSL lobe pairing t_lm with
   // Y_l,−m (a mirrored index) differed by 0.56; reading the matrix texture transposed
-  // (texel (i, v·n_out² + j)) by 0.37 (the orders are rectangular so that it shows).
+  // (texel (i, v·n_out² + j)) by 0.37 (the orders are rectangular so that it shows); int8
+  // weights without their vertex scale t_v by 24.9.
   constexpr double kGlslTol = 1e-4;
   const std::string chromium = test::chromiumPath();
   if (chromium.empty())
@@ -127,15 +128,17 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
   GlossyOptions o;
   o.orderOut = no, o.orderIn = ni, o.samples = 256;
   const GlossyResult r = computeGlossyTransfer(test::runtime(), scene, o);
+  // int8 weights, shaded as the GLSL's header says: c_kp folded into U, w_p = q_vp · t_v.
   CpcaOptions co;
-  co.clusters = 3, co.vectors = 4;
+  co.clusters = 3, co.vectors = 4, co.weightBits = 8;
   const CpcaResult c = cpcaCompress(r.matrices.data(), scene.vertexCount(), size_t(no2) * ni2, co);
   const GlossyLobe lobe = phongLobe(8.0, no);
   std::vector<double> light(size_t(ni2) * 3);
   for (int j = 0; j < ni2; ++j)
     for (int k = 0; k < 3; ++k) light[size_t(j) * 3 + k] = (j == 0 ? 2.0 : 0.6 * std::sin(1.7 * j + k));
 
-  // The CPCA cluster-light products U_kp = b_kp l (p = 0: μ_k l), what an application uploads.
+  // The CPCA cluster-light products U_k(p+1) = c_kp b_kp l (U_k0 = μ_k l), what an
+  // application uploads.
   const size_t K = size_t(c.clusters), P = size_t(c.vectors);
   std::vector<float> clusterLight;
   for (size_t k = 0; k < K; ++k)
@@ -143,8 +146,9 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
       const float* m = p == 0 ? &c.means[k * c.dim] : &c.basis[(k * P + p - 1) * c.dim];
       for (int i = 0; i < no2; ++i) {
         double s[3] = {0, 0, 0};
+        const double scale = p == 0 ? 1.0 : c.weightScales[k * P + p - 1];
         for (int j = 0; j < ni2; ++j)
-          for (int ch = 0; ch < 3; ++ch) s[ch] += double(m[i * ni2 + j]) * light[size_t(j) * 3 + ch];
+          for (int ch = 0; ch < 3; ++ch) s[ch] += scale * double(m[i * ni2 + j]) * light[size_t(j) * 3 + ch];
         clusterLight.insert(clusterLight.end(), {float(s[0]), float(s[1]), float(s[2]), 1.0f});
       }
     }
@@ -171,7 +175,10 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
     cluster.push_back(c.clusterOf[v]);
     normalised.push_back(norm ? 1 : 0);
     for (int i = 0; i < 3; ++i) normal.push_back(float(n[i])), view.push_back(float(w[i])), alb.push_back(scene.albedo[3 * v + i]);
-    for (size_t p = 0; p < P; ++p) weights.push_back(c.weights[v * P + p]);
+    for (size_t p = 0; p < P; ++p) {
+      const float step = c.weightScales[size_t(c.clusterOf[v]) * P + p] * c.vertexScales[v];
+      weights.push_back(float(cpcaInt8Code(c.weights[v * P + p], step)) * c.vertexScales[v]);
+    }
     cpcaReconstruct(c, v, rec.data());
     for (int form = 0; form < 2; ++form) {
       const float* m = form == 0 ? r.vertex(v) : rec.data();

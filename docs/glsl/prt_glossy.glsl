@@ -14,13 +14,19 @@
 // CPCA (prtbake cpca): M_v ≈ μ_k + Σ_p w_vp b_kp, k = cluster of v, so
 //   t_v = U_k0 + Σ_p w_vp U_k(p+1),  U_k0 = μ_k l, U_k(p+1) = b_kp l,
 // with U (K·(P+1) vectors of n_out² RGB) computed once per lighting by the application.
+// int8 weights (--weights int8): w_vp = q_vp · c_kp · t_v; fold c_kp into U (U_k(p+1) =
+// c_kp b_kp l) and pass w_p = q_vp · t_v (q from a BYTE vertex attribute, t_v a float one).
 //
-// Define PRT_ORDER_OUT (2..6) and PRT_ORDER_IN (2..6) before including this file.
+// Define PRT_ORDER_OUT (2..6) and PRT_ORDER_IN (2..6) before including this file, and
+// PRT_CPCA_VECTORS (≥ P, default 128) to size the weight array.
 #ifndef PRT_ORDER_OUT
 #define PRT_ORDER_OUT 3
 #endif
 #ifndef PRT_ORDER_IN
 #define PRT_ORDER_IN PRT_ORDER_OUT
+#endif
+#ifndef PRT_CPCA_VECTORS
+#define PRT_CPCA_VECTORS 128
 #endif
 #define PRT_N_OUT (PRT_ORDER_OUT * PRT_ORDER_OUT)
 #define PRT_N_IN (PRT_ORDER_IN * PRT_ORDER_IN)
@@ -107,8 +113,9 @@ void prtTransfer(highp sampler2D matrices, int vertex, vec3 light[PRT_N_IN], out
 
 // CPCA: t_i = U_k0,i + Σ_p w_p U_k(p+1),i, U read from a RGB32F texture holding PRT_N_OUT
 // columns and one row per (cluster, vector) (texel (i, k·(P+1) + p) = U_kp,i, p = 0 the
-// mean's), with P = vectors (≤ 64) and w the vertex's P weights.
-void prtTransferCpca(highp sampler2D clusterLight, int cluster, int vectors, float w[64], out vec3 t[PRT_N_OUT]) {
+// mean's), with P = vectors (≤ PRT_CPCA_VECTORS) and w the vertex's P weights.
+void prtTransferCpca(highp sampler2D clusterLight, int cluster, int vectors, float w[PRT_CPCA_VECTORS],
+                     out vec3 t[PRT_N_OUT]) {
   int row = cluster * (vectors + 1);
   for (int i = 0; i < PRT_N_OUT; ++i) {
     vec3 s = texelFetch(clusterLight, ivec2(i, row), 0).rgb;

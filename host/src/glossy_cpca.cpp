@@ -286,7 +286,7 @@ class Cpca {
     y.resize(P);
     dots.resize(4 * P);
     for (int s = 0; s < steps; ++s) {
-      double muB[64];
+      std::vector<double> muB(P);
       for (size_t p = 0; p < P; ++p) {
         double t = 0;
         for (size_t d = 0; d < D; ++d) t += double(B[p * D + d]) * mu[d];
@@ -321,7 +321,14 @@ class Cpca {
   std::vector<double> norm2_;
 };
 
-CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, int iterations, int threads) {
+// Bytes of a CPCA: float32 means and basis, int32 cluster ids, weights of `bits` bits (and
+// with int8 weights float32 scales per cluster and vector and per vertex).
+double cpcaBytes(double K, double P, double V, double D, int bits) {
+  return 4 * (K * (P + 1) * D + V) + V * P * (bits / 8) + (bits == 8 ? 4 * (K * P + V) : 0);
+}
+
+CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, int iterations, int threads,
+                   int weightBits) {
   const auto t0 = std::chrono::steady_clock::now();
   K = std::max<size_t>(1, std::min(K, V));
   Cpca c(data, V, D, threads);
@@ -410,6 +417,47 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   r.clusterOf = cluster;
   r.weights.assign(V * P, 0.0f);
   r.vertexError.assign(V, 0.0f);
+  parallelFor(V, threads, [&](size_t a, size_t b, int) {
+    for (size_t v = a; v < b; ++v) {
+      const size_t k = size_t(cluster[v]);
+      const float* x = c.row(v);
+      for (size_t p = 0; p < P; ++p) {
+        const float* bp = &r.basis[(k * P + p) * D];
+        double w = 0;
+        for (size_t d = 0; d < D; ++d) w += bp[d] * (double(x[d]) - r.means[k * D + d]);
+        r.weights[v * P + p] = float(w);
+      }
+    }
+  });
+  r.weightBits = weightBits;
+  if (weightBits == 8) {
+    // w_vp ≈ q_vp · c_kp · t_v: c_kp the RMS of weight p over cluster k's members, t_v the
+    // vertex's largest |w_vp| / c_kp over 127. The per-vertex factor keeps the relative error
+    // of weakly lit (small) matrices as small as that of the others; w becomes exactly what a
+    // reader of the int8 array reconstructs.
+    std::vector<double> sum2(K * P, 0.0);
+    std::vector<size_t> members(K, 0);
+    for (size_t v = 0; v < V; ++v) {
+      ++members[size_t(cluster[v])];
+      for (size_t p = 0; p < P; ++p) sum2[size_t(cluster[v]) * P + p] += double(r.weights[v * P + p]) * r.weights[v * P + p];
+    }
+    r.weightScales.assign(K * P, 0.0f);
+    for (size_t k = 0; k < K; ++k)
+      for (size_t p = 0; p < P; ++p)
+        if (members[k]) r.weightScales[k * P + p] = float(std::sqrt(sum2[k * P + p] / double(members[k])));
+    r.vertexScales.assign(V, 0.0f);
+    for (size_t v = 0; v < V; ++v) {
+      const float* c = &r.weightScales[size_t(cluster[v]) * P];
+      float t = 0;
+      for (size_t p = 0; p < P; ++p)
+        if (c[p] > 0) t = std::max(t, std::fabs(r.weights[v * P + p]) / c[p]);
+      r.vertexScales[v] = t / 127.0f;
+      for (size_t p = 0; p < P; ++p) {
+        const float scale = c[p] * r.vertexScales[v];
+        r.weights[v * P + p] = cpcaInt8Value(cpcaInt8Code(r.weights[v * P + p], scale), scale);
+      }
+    }
+  }
   std::vector<double> errAbs(V, 0.0), norms(V, 0.0);
   parallelFor(V, threads, [&](size_t a, size_t b, int) {
     std::vector<double> diff(D);
@@ -417,13 +465,7 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
       const size_t k = size_t(cluster[v]);
       const float* x = c.row(v);
       for (size_t d = 0; d < D; ++d) diff[d] = double(x[d]) - r.means[k * D + d];
-      for (size_t p = 0; p < P; ++p) {
-        const float* bp = &r.basis[(k * P + p) * D];
-        double w = 0;
-        for (size_t d = 0; d < D; ++d) w += bp[d] * diff[d];
-        r.weights[v * P + p] = float(w);
-      }
-      // The residual with the stored (float) weights, as a shader reconstructs it.
+      // The residual with the stored weights, as a shader reconstructs it.
       for (size_t p = 0; p < P; ++p) {
         const float* bp = &r.basis[(k * P + p) * D];
         const double w = r.weights[v * P + p];
@@ -449,13 +491,13 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
 
 }  // namespace
 
-double CpcaResult::storedValues() const {
-  return double(clusters) * double(vectors + 1) * double(dim) + double(vertexCount) * double(vectors + 1);
+double CpcaResult::storedBytes() const {
+  return cpcaBytes(clusters, vectors, double(vertexCount), double(dim), weightBits);
 }
 
 double CpcaResult::compressionRatio() const {
-  const double s = storedValues();
-  return s > 0 ? double(vertexCount) * double(dim) / s : 0;
+  const double s = storedBytes();
+  return s > 0 ? 4 * double(vertexCount) * double(dim) / s : 0;
 }
 
 namespace {
@@ -490,18 +532,19 @@ void unpackSymmetric(const float* p, size_t m, float* x) {
     for (size_t j = 0; j < i; ++j) x[i * m + j] = x[j * m + i] = float(p[k++] / std::sqrt(2.0));
 }
 
-CpcaResult cpcaSearch(const float* data, size_t V, size_t D, const CpcaOptions& o);
+// storedD: the values per vertex as stored (symmetric data are clustered packed, stored whole).
+CpcaResult cpcaSearch(const float* data, size_t V, size_t D, size_t storedD, const CpcaOptions& o);
 
 }  // namespace
 
 CpcaResult cpcaCompress(const float* data, size_t V, size_t D, const CpcaOptions& o) {
   if (V == 0 || D == 0) throw UsageError("cpca", "nothing to compress (no vertices)");
   const size_t m = symmetricSide(data, V, D);
-  if (m == 0) return cpcaSearch(data, V, D, o);
+  if (m == 0) return cpcaSearch(data, V, D, D, o);
   const size_t dp = m * (m + 1) / 2;
   std::vector<float> packed(V * dp);
   for (size_t v = 0; v < V; ++v) packSymmetric(data + v * D, m, &packed[v * dp]);
-  CpcaResult r = cpcaSearch(packed.data(), V, dp, o);
+  CpcaResult r = cpcaSearch(packed.data(), V, dp, D, o);
   // Means and basis rows back to full matrices (the basis stays orthonormal).
   std::vector<float> means(size_t(r.clusters) * D), basis(size_t(r.clusters) * size_t(r.vectors) * D);
   for (size_t k = 0; k < size_t(r.clusters); ++k) unpackSymmetric(&r.means[k * dp], m, &means[k * D]);
@@ -513,47 +556,56 @@ CpcaResult cpcaCompress(const float* data, size_t V, size_t D, const CpcaOptions
 }
 
 namespace {
-CpcaResult cpcaSearch(const float* data, size_t V, size_t D, const CpcaOptions& o) {
+CpcaResult cpcaSearch(const float* data, size_t V, size_t D, size_t storedD, const CpcaOptions& o) {
   const int threads = o.threads > 0 ? o.threads : std::max(1, int(std::thread::hardware_concurrency()));
   if (o.iterations < 1 || o.iterations > 1000) throw UsageError("--cpca-iterations", "must lie in [1, 1000]");
+  if (o.weightBits != 32 && o.weightBits != 8) throw UsageError("--cpca-weights", "must be float32 or int8");
   if (o.clusters > 0 && o.vectors >= 0 && !(o.targetError > 0)) {
-    if (o.vectors > 64) throw UsageError("--cpca", "at most 64 PCA vectors per cluster");
+    if (o.vectors > kMaxCpcaVectors)
+      throw UsageError("--cpca", "at most " + std::to_string(kMaxCpcaVectors) + " PCA vectors per cluster");
     if (size_t(o.clusters) > V) throw UsageError("--cpca", "more clusters than vertices");
-    return runCpca(data, V, D, size_t(o.clusters), size_t(o.vectors), o.iterations, threads);
+    return runCpca(data, V, D, size_t(o.clusters), size_t(o.vectors), o.iterations, threads, o.weightBits);
   }
   if (!(o.targetError > 0 && o.targetError < 1))
     throw UsageError("--cpca-error", "give K and P, or a target relative RMS error in (0, 1)");
-  // The ladder: every (K, P) with K a power of two ≤ 256 and P ∈ {1, 2, 3, 4, 6, 8, 12, 16,
-  // 24, 32}, in order of stored values; the first whose total error meets the target
-  // (each tried with fewer iterations, the winner refitted in full).
-  struct Cand {
-    size_t K, P;
-    double cost;
-  };
-  std::vector<Cand> cands;
-  for (size_t K = 1; K <= 256 && K <= V; K *= 2)
-    for (size_t P : {1, 2, 3, 4, 6, 8, 12, 16, 24, 32})
-      if (double(K) * (P + 1) * D + double(V) * (P + 1) < double(V) * D) cands.push_back({K, P, double(K) * (P + 1) * D + double(V) * (P + 1)});
-  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.cost < b.cost; });
+  // The ladder: K a power of two ≤ 256, P from the list below; the cheapest (K, P) in bytes
+  // whose total error meets the target. The error falls with P, so for each K the smallest
+  // P that meets it is found by bisection among the P cheaper than the best so far (each
+  // tried with at most 8 iterations, the winner refitted in full).
+  const std::vector<size_t> ladderP{1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 40, 48, 56, 64, 72, 80, 96, 112, 128};
+  const double plainBytes = 4 * double(V) * double(storedD);
   std::vector<std::array<double, 3>> tried;
-  // Error falls with both K and P; skip a candidate that is dominated by one that failed
-  // (smaller or equal in both).
-  for (const Cand& c : cands) {
-    bool dominated = false;
-    for (const auto& t : tried)
-      if (size_t(t[0]) >= c.K && size_t(t[1]) >= c.P && t[2] > o.targetError) dominated = true;
-    if (dominated) continue;
-    CpcaResult r = runCpca(data, V, D, c.K, c.P, std::min(o.iterations, 8), threads);
-    tried.push_back({double(c.K), double(c.P), r.totalError});
-    if (r.totalError <= o.targetError) {
-      if (o.iterations > 8) r = runCpca(data, V, D, c.K, c.P, o.iterations, threads);
-      r.tried = tried;
-      return r;
+  CpcaResult best;
+  double bestBytes = plainBytes;
+  auto attempt = [&](size_t K, size_t P) {
+    CpcaResult r = runCpca(data, V, D, K, P, std::min(o.iterations, 8), threads, o.weightBits);
+    tried.push_back({double(K), double(P), r.totalError});
+    return r;
+  };
+  for (size_t K = 1; K <= 256 && K <= V; K *= 2) {
+    std::vector<size_t> ps;
+    for (size_t P : ladderP)
+      if (P < D && cpcaBytes(K, P, V, storedD, o.weightBits) < bestBytes) ps.push_back(P);
+    if (ps.empty()) break;  // larger K only cost more
+    CpcaResult hi = attempt(K, ps.back());
+    if (hi.totalError > o.targetError) continue;
+    size_t lo = 0, up = ps.size() - 1;  // ps[up] meets the target
+    while (lo < up) {
+      const size_t mid = (lo + up) / 2;
+      CpcaResult r = attempt(K, ps[mid]);
+      if (r.totalError <= o.targetError) up = mid, hi = std::move(r);
+      else lo = mid + 1;
     }
-    if (tried.size() >= 24) break;
+    best = std::move(hi);
+    bestBytes = cpcaBytes(K, best.vectors, V, storedD, o.weightBits);
   }
-  throw UsageError("--cpca-error", "no clustering of the ladder reaches relative RMS error " +
-                                       std::to_string(o.targetError) + " while staying smaller than the matrices");
+  if (best.clusters == 0)
+    throw UsageError("--cpca-error", "no clustering of the ladder reaches relative RMS error " +
+                                         std::to_string(o.targetError) + " while staying smaller than the matrices");
+  if (o.iterations > 8)
+    best = runCpca(data, V, D, size_t(best.clusters), size_t(best.vectors), o.iterations, threads, o.weightBits);
+  best.tried = tried;
+  return best;
 }
 }  // namespace
 

@@ -348,7 +348,9 @@ std::string memberArray(const std::map<std::string, std::string>& m, const std::
     throw InputError(path, "'" + name + "' is not a C-order " + descr + " array of rank " + std::to_string(rank));
   double n = 1;
   for (size_t d : info.shape) n *= double(d);
-  if (double(it->second.size() - info.dataOffset) != n * 4) throw InputError(path, "'" + name + "' is truncated");
+  const double itemBytes = descr == "|i1" ? 1 : 4;
+  if (double(it->second.size() - info.dataOffset) != n * itemBytes)
+    throw InputError(path, "'" + name + "' is truncated");
   shape = info.shape;
   return it->second.substr(info.dataOffset);
 }
@@ -362,12 +364,25 @@ std::string cpcaNpzBytes(const CpcaResult& c, int orderOut, int orderIn, int cha
   std::vector<size_t> means{K}, basis{K, P};
   means.insert(means.end(), dimShape.begin(), dimShape.end());
   basis.insert(basis.end(), dimShape.begin(), dimShape.end());
-  return zipStored({{"means.npy", npyBytes("<f4", means, c.means)},
-                    {"basis.npy", npyBytes("<f4", basis, c.basis)},
-                    {"clusters.npy", npyBytes("<i4", {V}, c.clusterOf)},
-                    {"weights.npy", npyBytes("<f4", {V, P}, c.weights)},
-                    {"error.npy", npyBytes("<f4", {V}, c.vertexError)},
-                    {"orders.npy", npyBytes("<i4", {3}, std::vector<int32_t>{orderOut, orderIn, channels})}});
+  std::vector<std::pair<std::string, std::string>> members{
+      {"means.npy", npyBytes("<f4", means, c.means)},
+      {"basis.npy", npyBytes("<f4", basis, c.basis)},
+      {"clusters.npy", npyBytes("<i4", {V}, c.clusterOf)}};
+  if (c.weightBits == 8) {
+    // The weights are q · (c_kp · t_v) (runCpca quantised them): q back exactly.
+    std::vector<int8_t> q(c.weights.size());
+    for (size_t v = 0; v < V; ++v)
+      for (size_t p = 0; p < P; ++p)
+        q[v * P + p] = cpcaInt8Code(c.weights[v * P + p], c.weightScales[size_t(c.clusterOf[v]) * P + p] * c.vertexScales[v]);
+    members.push_back({"weights.npy", npyBytes("|i1", {V, P}, q)});
+    members.push_back({"weight_scales.npy", npyBytes("<f4", {K, P}, c.weightScales)});
+    members.push_back({"vertex_scales.npy", npyBytes("<f4", {V}, c.vertexScales)});
+  } else {
+    members.push_back({"weights.npy", npyBytes("<f4", {V, P}, c.weights)});
+  }
+  members.push_back({"error.npy", npyBytes("<f4", {V}, c.vertexError)});
+  members.push_back({"orders.npy", npyBytes("<i4", {3}, std::vector<int32_t>{orderOut, orderIn, channels})});
+  return zipStored(members);
 }
 
 std::string cpcaSidecarJson(const CpcaResult& c, const std::string& npzPath) {
@@ -388,9 +403,10 @@ std::string cpcaSidecarJson(const CpcaResult& c, const std::string& npzPath) {
         {"total", c.totalError},
         {"rms_vertex", c.rmsVertexError},
         {"max_vertex", c.maxVertexError}}},
+      {"weights", c.weightBits == 8 ? "int8: w[v, p] = weights[v, p] * (weight_scales[k, p] * vertex_scales[v])" : "float32"},
       {"compression",
-       {{"stored_values", c.storedValues()},
-        {"matrix_values", double(c.vertexCount) * double(c.dim)},
+       {{"stored_bytes", c.storedBytes()},
+        {"matrix_bytes_float32", 4 * double(c.vertexCount) * double(c.dim)},
         {"ratio_to_float32", c.compressionRatio()}}},
       {"iterations", c.iterations},
       {"ladder_tried", tried},
@@ -413,12 +429,18 @@ CpcaResult readCpcaNpz(const std::string& path, int* orderOut, int* orderIn, int
   const std::string mean = memberArray(m, "means", "<f4", rank, sm, path);
   const std::string basis = memberArray(m, "basis", "<f4", rank + 1, sb, path);
   const std::string ids = memberArray(m, "clusters", "<i4", 1, sc, path);
-  const std::string w = memberArray(m, "weights", "<f4", 2, sw, path);
+  // float32 weights, or int8 ones with float32 scales per cluster and vector.
+  const bool int8 = m.count("weight_scales.npy") > 0;
+  const std::string w = memberArray(m, "weights", int8 ? "|i1" : "<f4", 2, sw, path);
+  std::vector<size_t> ss, st;
+  const std::string scales = int8 ? memberArray(m, "weight_scales", "<f4", 2, ss, path) : std::string();
+  const std::string vscales = int8 ? memberArray(m, "vertex_scales", "<f4", 1, st, path) : std::string();
   CpcaResult c;
   c.clusters = int(sm[0]), c.vectors = int(sb[1]), c.vertexCount = sc[0];
   c.dim = size_t(o[2]) * o[0] * o[0] * o[1] * o[1];
   if (sb[0] != sm[0] || sw[0] != sc[0] || sw[1] != sb[1] || mean.size() != size_t(c.clusters) * c.dim * 4 ||
-      basis.size() != size_t(c.clusters) * size_t(c.vectors) * c.dim * 4)
+      basis.size() != size_t(c.clusters) * size_t(c.vectors) * c.dim * 4 ||
+      (int8 && (ss[0] != sm[0] || ss[1] != sb[1] || st[0] != sc[0])))
     throw InputError(path, "the CPCA arrays disagree in their shapes");
   auto copy = [](const std::string& b, auto& v) {
     v.resize(b.size() / 4);
@@ -427,10 +449,21 @@ CpcaResult readCpcaNpz(const std::string& path, int* orderOut, int* orderIn, int
   copy(mean, c.means);
   copy(basis, c.basis);
   copy(ids, c.clusterOf);
-  copy(w, c.weights);
   for (int32_t k : c.clusterOf)
     if (k < 0 || k >= c.clusters) throw InputError(path, "cluster id out of range");
-  for (const std::vector<float>* v : {&c.means, &c.basis, &c.weights})
+  if (int8) {
+    copy(scales, c.weightScales);
+    copy(vscales, c.vertexScales);
+    c.weightBits = 8;
+    const size_t P = size_t(c.vectors);
+    c.weights.resize(w.size());
+    for (size_t i = 0; i < w.size(); ++i)
+      c.weights[i] = cpcaInt8Value(int8_t(w[i]), c.weightScales[size_t(c.clusterOf[i / P]) * P + i % P] *
+                                                     c.vertexScales[i / P]);
+  } else {
+    copy(w, c.weights);
+  }
+  for (const std::vector<float>* v : {&c.means, &c.basis, &c.weights, &c.weightScales, &c.vertexScales})
     for (float x : *v)
       if (!std::isfinite(x)) throw InputError(path, "holds a non-finite value");
   return c;

@@ -47,7 +47,8 @@ PRTBAKE_FUZZ_TARGET(glossy) {
     if (!fuzz::expectCleanFailure(path, [&] { c = readCpcaNpz(path, &no, &ni, &ch); })) return 0;
     const size_t dim = size_t(ch) * size_t(no * no) * size_t(ni * ni), k = size_t(c.clusters), p = size_t(c.vectors);
     if (c.dim != dim || c.means.size() != k * dim || c.basis.size() != k * p * dim ||
-        c.clusterOf.size() != c.vertexCount || c.weights.size() != c.vertexCount * p)
+        c.clusterOf.size() != c.vertexCount || c.weights.size() != c.vertexCount * p ||
+        (c.weightBits == 8 && (c.weightScales.size() != k * p || c.vertexScales.size() != c.vertexCount)))
       fuzz::fail("CPCA arrays disagree with each other");
     for (int32_t id : c.clusterOf)
       if (id < 0 || id >= c.clusters) fuzz::fail("cluster id out of range");

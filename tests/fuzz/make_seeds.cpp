@@ -295,6 +295,8 @@ void glossy() {
   o.clusters = 2, o.vectors = 1, o.threads = 1;
   const CpcaResult c = cpcaCompress(data.data(), 8, dim, o);
   put("glossy", "cpca", Bytes(1, '\2') + cpcaNpzBytes(c, 3, 2, 1));
+  o.weightBits = 8;
+  put("glossy", "cpca_int8", Bytes(1, '\2') + cpcaNpzBytes(cpcaCompress(data.data(), 8, dim, o), 3, 2, 1));
 }
 
 }  // namespace

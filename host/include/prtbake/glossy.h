@@ -28,7 +28,9 @@
 // sample set when n_in = n_out and there is no interreflection.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -201,27 +203,38 @@ struct CpcaOptions {
   double targetError = 0;    // > 0: the cheapest (K, P) of a fixed ladder with total relative RMS ≤ this
   int iterations = 10;       // the most Lloyd iterations (stops when < 0.1 % of vertices move)
   int threads = 0;           // 0: hardware concurrency
+  int weightBits = 32;       // 32: float32 weights; 8: int8 weights, w = q · scale[k, p]
 };
+constexpr int kMaxCpcaVectors = 128;
 struct CpcaResult {
   int clusters = 0, vectors = 0;
   size_t vertexCount = 0, dim = 0;  // dim = values per vertex (channels × n_out² × n_in²)
   std::vector<float> means;         // K × dim
   std::vector<float> basis;         // K × P × dim (orthonormal rows per cluster)
   std::vector<int32_t> clusterOf;   // V
-  std::vector<float> weights;       // V × P: w = Bᵀ(x − μ)
+  std::vector<float> weights;       // V × P: w = Bᵀ(x − μ) (int8: q · (c_kp · t_v), cpcaInt8Value)
+  int weightBits = 32;              // 32, or 8: int8 weights q_vp with float32 scales c_kp and t_v
+  std::vector<float> weightScales;  // int8: K × P, c_kp = RMS of weight p over cluster k
+  std::vector<float> vertexScales;  // int8: V, t_v = max_p |w_vp| / c_kp / 127
   std::vector<float> vertexError;   // V: |x − x̃| / |x| (0 for a zero matrix)
   double totalError = 0;            // √(Σ|x − x̃|² / Σ|x|²)
   double rmsVertexError = 0, maxVertexError = 0;
   int iterations = 0;
   std::vector<std::array<double, 3>> tried;  // targetError: (K, P, total error) evaluated
   double seconds = 0;
-  // Values stored (means + basis + ids + weights) and the ratio to V × dim float32.
-  double storedValues() const;
+  // Bytes stored (means + basis + ids + weights + scales) and the ratio to V × dim float32.
+  double storedBytes() const;
   double compressionRatio() const;
 };
 // x̃_v = μ_k + Σ_p w_vp b_kp, k = clusterOf[v]. `data`: V × dim floats.
 CpcaResult cpcaCompress(const float* data, size_t vertices, size_t dim, const CpcaOptions& options);
 void cpcaReconstruct(const CpcaResult& c, size_t v, float* out);
+// The int8 code of weight w under scale s = c_kp · t_v (float product), and its value q · s:
+// writer, reader and the compressor agree on them bit for bit.
+inline int8_t cpcaInt8Code(float w, float s) {
+  return s > 0 ? int8_t(std::clamp(std::lround(w / s), -127L, 127L)) : int8_t(0);
+}
+inline float cpcaInt8Value(int8_t q, float s) { return float(q) * s; }
 
 // --- files ---
 // A .npy written block by block: the header with the final shape first, data appended
