@@ -97,6 +97,25 @@ TEST_CASE("Glossy .npy readers refuse shapes without vertices or outside the ord
   std::ofstream(dir + "/m.npy", std::ios::binary | std::ios::trunc) << ok;
   CHECK(readGlossyNpy(dir + "/m.npy").values.size() == 2 * 9 * 16);
   CHECK(GlossyNpyMap(dir + "/m.npy").info().orderIn == 4);
+  // A fuzzing finding: a header one byte longer puts the floats at an odd offset; the
+  // mapping read them misaligned (UBSan). It now refuses, and the copying reader (which
+  // `prtbake cpca` falls back to) reads the same values.
+  std::string odd = glossyNpyHeader({2, 9, 16}, MatrixDtype::Float32);
+  const size_t newline = odd.size() - 1;
+  odd.insert(newline, " ");
+  odd[8] = char(uint8_t(odd[8]) + 1);  // HEADER_LEN (little-endian, < 255 here)
+  for (int i = 0; i < 2 * 9 * 16; ++i) {
+    const float x = 0.25f * float(i % 7);
+    odd.append(reinterpret_cast<const char*>(&x), 4);
+  }
+  std::ofstream(dir + "/odd.npy", std::ios::binary | std::ios::trunc) << odd;
+  CHECK_THROWS_WITH(GlossyNpyMap(dir + "/odd.npy"), Catch::Contains("odd.npy") && Catch::Contains("multiple of 4"));
+  const GlossyMatrices g = readGlossyNpy(dir + "/odd.npy");
+  REQUIRE(g.values.size() == 2 * 9 * 16);
+  CHECK(g.values[5] == 0.25f * 5);
+  const auto r = test::runCli("cpca " + q(dir + "/odd.npy") + " -o " + q(dir + "/odd.npz") + " --clusters 1 --vectors 1");
+  INFO(r.output);
+  CHECK(r.exitCode == 0);
 }
 
 TEST_CASE("CLI: the matrices stream to disk in vertex blocks (bounded memory)", "[glossy][cli][memory]") {

@@ -196,6 +196,10 @@ GlossyNpyMap::GlossyNpyMap(const std::string& path) {
   // The header through the reader's checks, then a read-only mapping of the whole file.
   const npy::Header info = readMatrixHeader(path, info_);
   if (info_.dtype != MatrixDtype::Float32) throw InputError(path, "only float32 matrices can be mapped");
+  // Floats are read in place: numpy pads its headers to a multiple of 64 bytes.
+  if (info.dataOffset % alignof(float) != 0)
+    throw InputError(path, "the data starts at byte " + std::to_string(info.dataOffset) +
+                               ", not a multiple of 4: it cannot be mapped (read it instead)");
   const double n = double(info_.vertexCount) * info_.channels * info_.orderOut * info_.orderOut * info_.orderIn *
                    info_.orderIn;
   const int fd = ::open(path.c_str(), O_RDONLY);

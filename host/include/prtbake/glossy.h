@@ -267,7 +267,8 @@ struct GlossyMatrices {
 GlossyMatrices readGlossyNpy(const std::string& path, size_t expectedVertices = 0);
 // A float32 glossy .npy mapped read-only instead of read (no copy, no fresh memory: the
 // CPCA of a large bake reads it in place). The header is checked as readGlossyNpy does;
-// info().values stays empty. A float16 file throws InputError (read it instead).
+// info().values stays empty. A float16 file, or one whose data does not start at a
+// multiple of 4 bytes, throws InputError (read it instead).
 class GlossyNpyMap {
  public:
   explicit GlossyNpyMap(const std::string& path);
