@@ -99,6 +99,10 @@ int runGlossyTransport(const CommandLine& cl) {
   const size_t nv = mesh.vertexCount();
   const int channels = glossyChannels(mesh, o);
   const double bytes = glossyMatrixBytes(nv, channels, o.orderOut, o.orderIn);
+  const int dim = channels * o.orderOut * o.orderOut * o.orderIn * o.orderIn;
+  if (cpca && co.vectors > dim)  // before the bake (symmetric matrices are checked after it)
+    throw UsageError("--cpca", "more PCA vectors (" + std::to_string(co.vectors) + ") than values per vertex (" +
+                                   std::to_string(dim) + ")");
   if (cpca && bytes > double(inputMemoryLimit()))
     throw UsageError("--cpca", "CPCA holds the matrices in memory: " + std::to_string(nv) + " vertices at orders " +
                                    std::to_string(o.orderOut) + " x " + std::to_string(o.orderIn) + " need " + mib(bytes) +

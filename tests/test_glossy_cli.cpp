@@ -187,6 +187,7 @@ TEST_CASE("CLI: bad options and inputs give one error line and no output", "[glo
       {"--cpca 4", 2, "--cpca"},
       {"--cpca 4,4 --cpca-error 0.1", 2, "not both"},
       {"--cpca 4,129", 2, "P in [0, 128]"},
+      {"--order 2 --cpca 2,17", 2, "more PCA vectors (17) than values per vertex (16)"},
       {"--cpca-weights int8", 2, "goes with --cpca K,P or --cpca-error E"},
       {"--cpca 4,4 --cpca-weights int4", 2, "float32|int8"},
       {"--bounces 2", 2, "interreflected"},
@@ -449,6 +450,9 @@ TEST_CASE("CPCA with int8 weights: each weight within half a step, and the .npz 
   CHECK(worstStep <= 0.5 + 1e-3);  // rounding to the nearest code, float slack
   CHECK(dw > 0);
   CHECK(e8 == Approx(e32 + dw).epsilon(1e-3));  // kPythagoras: float32 per-vertex errors
+  // More vectors than values per vertex: refused (the basis could not be orthonormal).
+  o.vectors = int(D) + 1;
+  CHECK_THROWS_WITH(cpcaCompress(x.data(), V, D, o), Catch::Contains("more PCA vectors (37)"));
   // 1 byte per weight plus 4 per vertex scale, against 4 per float weight.
   CHECK(c.storedBytes() == Approx(f.storedBytes() - double(V) * P * 3 + 4.0 * (V + 2 * P)));
   // The archive: numpy's int8 array and both scales; read back bit for bit.

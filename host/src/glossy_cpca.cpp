@@ -564,6 +564,9 @@ CpcaResult cpcaSearch(const float* data, size_t V, size_t D, size_t storedD, con
     if (o.vectors > kMaxCpcaVectors)
       throw UsageError("--cpca", "at most " + std::to_string(kMaxCpcaVectors) + " PCA vectors per cluster");
     if (size_t(o.clusters) > V) throw UsageError("--cpca", "more clusters than vertices");
+    if (size_t(o.vectors) > D)
+      throw UsageError("--cpca", "more PCA vectors (" + std::to_string(o.vectors) + ") than independent values per vertex (" +
+                                     std::to_string(D) + (D < storedD ? ": the matrices are symmetric)" : ")"));
     return runCpca(data, V, D, size_t(o.clusters), size_t(o.vectors), o.iterations, threads, o.weightBits);
   }
   if (!(o.targetError > 0 && o.targetError < 1))
