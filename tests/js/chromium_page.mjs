@@ -5,13 +5,20 @@
 // the time limit.
 // Usage: PRTBAKE_CHROMIUM_PROFILE=DIR node chromium_page.mjs CHROMIUM URL [SECONDS]
 import { spawn } from 'node:child_process';
+import { mkdtempSync, rmSync } from 'node:fs';
 
 const [chromium, url, secondsText] = process.argv.slice(2);
+const profile = process.env.PRTBAKE_CHROMIUM_PROFILE;
+// Chromium's own temporary files (its singleton socket folder) go into a folder of ours,
+// removed when this script exits, instead of staying in /tmp. It is short: the socket's
+// path must fit in 108 bytes.
+const tmp = mkdtempSync('/tmp/prtbake-chromium-');
+process.on('exit', () => rmSync(tmp, { recursive: true, force: true }));
 const proc = spawn(chromium, [
   '--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
   '--allow-file-access-from-files', '--disable-background-networking', '--disable-component-update', '--no-first-run',
-  `--user-data-dir=${process.env.PRTBAKE_CHROMIUM_PROFILE}`, '--remote-debugging-pipe', 'about:blank',
-], { stdio: ['ignore', 'ignore', 'ignore', 'pipe', 'pipe'] });
+  `--user-data-dir=${profile}`, '--remote-debugging-pipe', 'about:blank',
+], { stdio: ['ignore', 'ignore', 'ignore', 'pipe', 'pipe'], env: { ...process.env, TMPDIR: tmp } });
 const timer = setTimeout(() => {
   process.stdout.write('ERROR the page gave no result within the time limit\n');
   proc.kill('SIGKILL');
