@@ -439,7 +439,7 @@ TEST_CASE("CPCA with int8 weights: each weight within half a step, and the .npz 
     for (size_t d = 0; d < D; ++d) n2 += double(x[v * D + d]) * x[v * D + d];
     e8 += n2 * c.vertexError[v] * c.vertexError[v], e32 += n2 * f.vertexError[v] * f.vertexError[v];
     for (size_t p = 0; p < P; ++p) {
-      const double step = double(c.weightScales[size_t(c.clusterOf[v]) * P + p]) * c.vertexScales[v];
+      const double step = cpcaInt8Step(c, v, p);
       const double d = double(c.weights[v * P + p]) - f.weights[v * P + p];
       worstStep = std::max(worstStep, std::abs(d) / step);
       dw += d * d;

@@ -176,7 +176,7 @@ TEST_CASE("GLSL: prt_glossy.glsl in headless Chromium matches prtbake's shading"
     normalised.push_back(norm ? 1 : 0);
     for (int i = 0; i < 3; ++i) normal.push_back(float(n[i])), view.push_back(float(w[i])), alb.push_back(scene.albedo[3 * v + i]);
     for (size_t p = 0; p < P; ++p) {
-      const float step = c.weightScales[size_t(c.clusterOf[v]) * P + p] * c.vertexScales[v];
+      const float step = cpcaInt8Step(c, v, p);
       weights.push_back(float(cpcaInt8Code(c.weights[v * P + p], step)) * c.vertexScales[v]);
     }
     cpcaReconstruct(c, v, rec.data());

@@ -418,13 +418,15 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   r.weights.assign(V * P, 0.0f);
   r.vertexError.assign(V, 0.0f);
   parallelFor(V, threads, [&](size_t a, size_t b, int) {
+    std::vector<double> diff(D);
     for (size_t v = a; v < b; ++v) {
       const size_t k = size_t(cluster[v]);
       const float* x = c.row(v);
+      for (size_t d = 0; d < D; ++d) diff[d] = double(x[d]) - r.means[k * D + d];
       for (size_t p = 0; p < P; ++p) {
         const float* bp = &r.basis[(k * P + p) * D];
         double w = 0;
-        for (size_t d = 0; d < D; ++d) w += bp[d] * (double(x[d]) - r.means[k * D + d]);
+        for (size_t d = 0; d < D; ++d) w += bp[d] * diff[d];
         r.weights[v * P + p] = float(w);
       }
     }
@@ -452,11 +454,12 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
       for (size_t p = 0; p < P; ++p)
         if (c[p] > 0) t = std::max(t, std::fabs(r.weights[v * P + p]) / c[p]);
       r.vertexScales[v] = t / 127.0f;
-      for (size_t p = 0; p < P; ++p) {
-        const float scale = c[p] * r.vertexScales[v];
-        r.weights[v * P + p] = cpcaInt8Value(cpcaInt8Code(r.weights[v * P + p], scale), scale);
-      }
     }
+    for (size_t v = 0; v < V; ++v)
+      for (size_t p = 0; p < P; ++p) {
+        const float step = cpcaInt8Step(r, v, p);
+        r.weights[v * P + p] = cpcaInt8Value(cpcaInt8Code(r.weights[v * P + p], step), step);
+      }
   }
   std::vector<double> errAbs(V, 0.0), norms(V, 0.0);
   parallelFor(V, threads, [&](size_t a, size_t b, int) {

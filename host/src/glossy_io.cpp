@@ -377,7 +377,7 @@ std::string cpcaNpzBytes(const CpcaResult& c, int orderOut, int orderIn, int cha
     std::vector<int8_t> q(c.weights.size());
     for (size_t v = 0; v < V; ++v)
       for (size_t p = 0; p < P; ++p)
-        q[v * P + p] = cpcaInt8Code(c.weights[v * P + p], c.weightScales[size_t(c.clusterOf[v]) * P + p] * c.vertexScales[v]);
+        q[v * P + p] = cpcaInt8Code(c.weights[v * P + p], cpcaInt8Step(c, v, p));
     members.push_back({"weights.npy", npyBytes("|i1", {V, P}, q)});
     members.push_back({"weight_scales.npy", npyBytes("<f4", {K, P}, c.weightScales)});
     members.push_back({"vertex_scales.npy", npyBytes("<f4", {V}, c.vertexScales)});
@@ -461,9 +461,7 @@ CpcaResult readCpcaNpz(const std::string& path, int* orderOut, int* orderIn, int
     c.weightBits = 8;
     const size_t P = size_t(c.vectors);
     c.weights.resize(w.size());
-    for (size_t i = 0; i < w.size(); ++i)
-      c.weights[i] = cpcaInt8Value(int8_t(w[i]), c.weightScales[size_t(c.clusterOf[i / P]) * P + i % P] *
-                                                     c.vertexScales[i / P]);
+    for (size_t i = 0; i < w.size(); ++i) c.weights[i] = cpcaInt8Value(int8_t(w[i]), cpcaInt8Step(c, i / P, i % P));
   } else {
     copy(w, c.weights);
   }

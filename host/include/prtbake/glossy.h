@@ -203,7 +203,7 @@ struct CpcaOptions {
   double targetError = 0;    // > 0: the cheapest (K, P) of a fixed ladder with total relative RMS ≤ this
   int iterations = 10;       // the most Lloyd iterations (stops when < 0.1 % of vertices move)
   int threads = 0;           // 0: hardware concurrency
-  int weightBits = 32;       // 32: float32 weights; 8: int8 weights, w = q · scale[k, p]
+  int weightBits = 32;       // 32: float32 weights; 8: int8 weights, w = q · c_kp · t_v (CpcaResult)
 };
 constexpr int kMaxCpcaVectors = 128;
 struct CpcaResult {
@@ -229,8 +229,11 @@ struct CpcaResult {
 // x̃_v = μ_k + Σ_p w_vp b_kp, k = clusterOf[v]. `data`: V × dim floats.
 CpcaResult cpcaCompress(const float* data, size_t vertices, size_t dim, const CpcaOptions& options);
 void cpcaReconstruct(const CpcaResult& c, size_t v, float* out);
-// The int8 code of weight w under scale s = c_kp · t_v (float product), and its value q · s:
-// writer, reader and the compressor agree on them bit for bit.
+// The int8 step of weight p of vertex v, s = c_kp · t_v; the code of weight w under s, and its
+// value q · s: compressor, writer and reader agree on them bit for bit.
+inline float cpcaInt8Step(const CpcaResult& c, size_t v, size_t p) {
+  return c.weightScales[size_t(c.clusterOf[v]) * size_t(c.vectors) + p] * c.vertexScales[v];
+}
 inline int8_t cpcaInt8Code(float w, float s) {
   return s > 0 ? int8_t(std::clamp(std::lround(w / s), -127L, 127L)) : int8_t(0);
 }
