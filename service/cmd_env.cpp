@@ -1,4 +1,5 @@
 // prtbake env: environment map → SH coefficients (JSON, GAMES202 light.txt).
+#include <algorithm>
 #include <chrono>
 #include <nlohmann/json.hpp>
 
@@ -40,12 +41,13 @@ int runEnv(const CommandLine& cl) {
 
   nlohmann::json autoCurve;
   bool autoMet = true;
-  EnvMap env = loadEnvironment(input, lo);
-  env.yawDegrees = yaw;
-  const double loadSeconds = secondsSince(t0);
   Runtime rt(cl.device());
   const auto t1 = std::chrono::steady_clock::now();
-  EnvProjectResult r = projectEnvironment(rt, env, po);
+  // A lat-long OpenEXR file is decoded and projected in bands: "load" is then the host's
+  // share of the two (decoding, checks, sums), the rest being the device's.
+  EnvMap env;
+  EnvProjectResult r = projectEnvironmentFile(rt, input, lo, yaw, po, &env);
+  const double loadSeconds = std::max(0.0, secondsSince(t1) - r.kernelSeconds - r.uploadSeconds - rt.buildSeconds());
   double autoError = 0;
   if (autoOrder) {
     const ShCoeffs high = r.radiance;

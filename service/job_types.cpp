@@ -39,15 +39,18 @@ json hashList(const std::vector<std::string>& files) {
 
 // The job's input environment, with its layout, clamp_invalid and yaw keys applied; the load's
 // seconds in *loadSeconds. `compact` keeps 8-bit inputs as bytes (env jobs only read texels once).
-EnvMap loadJobEnvironment(const Job& job, bool compact, double* loadSeconds) {
-  const json& p = job.params;
+EnvLoadOptions jobLoadOptions(const Job& job, bool compact) {
   EnvLoadOptions loadOptions;
-  loadOptions.layout = p["layout"].get<std::string>();
-  loadOptions.clampInvalid = p["clamp_invalid"].get<bool>();
+  loadOptions.layout = job.params["layout"].get<std::string>();
+  loadOptions.clampInvalid = job.params["clamp_invalid"].get<bool>();
   loadOptions.compact = compact;
+  return loadOptions;
+}
+
+EnvMap loadJobEnvironment(const Job& job, bool compact, double* loadSeconds) {
   const auto t0 = std::chrono::steady_clock::now();
-  EnvMap env = loadEnvironment(job.input, loadOptions);
-  env.yawDegrees = p["yaw"].get<double>();
+  EnvMap env = loadEnvironment(job.input, jobLoadOptions(job, compact));
+  env.yawDegrees = job.params["yaw"].get<double>();
   *loadSeconds = secondsSince(t0);
   return env;
 }
@@ -55,17 +58,24 @@ EnvMap loadJobEnvironment(const Job& job, bool compact, double* loadSeconds) {
 // --- env: environment map → SH coefficients (prtbake env) ---
 ExecResult runEnv(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
-  double loadSeconds = 0;
-  EnvMap env = loadJobEnvironment(job, true, &loadSeconds);
-
   EnvProjectOptions options;
   options.order = p["order"].get<int>();
   options.quantity = parseQuantity(p["quantity"].get<std::string>());
   options.window = parseWindow(p["window"].get<std::string>());
   Runtime& rt = ctx.runtime();
+  // The preview shows the texels: loaded whole for it; otherwise a lat-long OpenEXR file is
+  // decoded and projected in bands (load_seconds then counts only what precedes the bands).
+  double loadSeconds = 0;
+  EnvMap env;
+  EnvProjectResult r;
   const auto t1 = std::chrono::steady_clock::now();
-  const EnvProjectResult r = projectEnvironment(rt, env, options);
-  const double projectSeconds = secondsSince(t1);
+  if (ctx.wants("png")) {
+    env = loadJobEnvironment(job, true, &loadSeconds);
+    r = projectEnvironment(rt, env, options);
+  } else {
+    r = projectEnvironmentFile(rt, job.input, jobLoadOptions(job, true), p["yaw"].get<double>(), options, &env);
+  }
+  const double projectSeconds = secondsSince(t1) - loadSeconds;
 
   ExecResult result;
   result.inputFiles = filesRead(job, env.inputFiles);

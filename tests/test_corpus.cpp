@@ -205,8 +205,9 @@ TEST_CASE("limits: a header that claims a huge image fails before allocating and
 
 TEST_CASE("limits: a device allocation that fails names the device and leaves no output", "[corpus]") {
   // PoCL's POCL_MEMORY_LIMIT=1 gives its CPU device 1 GiB of global memory and a largest
-  // allocation of 256 MiB; an 8192×4096 float32 lat-long needs a 384 MiB buffer of texels
-  // (a half file would be read as halves: 192 MiB).
+  // allocation of 256 MiB; the preview of an 8192×4096 float32 lat-long projects it whole, from
+  // a 384 MiB buffer of texels (a half file would be read as halves: 192 MiB; `prtbake env`
+  // reads a lat-long OpenEXR file in bands of 32 MiB).
   const std::string dir = tempDir("corpus-device-memory");
   const int w = 8192, h = 4096;
   {
@@ -215,12 +216,18 @@ TEST_CASE("limits: a device allocation that fails names the device and leaves no
     o.envmap = 0;
     writeExr(dir + "/big.exr", w, h, {{"R", one.data()}, {"G", one.data()}, {"B", one.data()}}, o);
   }
-  const CliResult r = runShell("POCL_MEMORY_LIMIT=1 " + cli() + "env '" + dir + "/big.exr' -o '" + dir +
-                               "/out/sh.json' --device cpu --quiet");
+  const CliResult r = runShell("POCL_MEMORY_LIMIT=1 " + cli() + "preview env '" + dir + "/big.exr' -o '" + dir +
+                               "/out/env.png' --device cpu --quiet");
   INFO(r.output);
   CHECK(r.exitCode == 1);
   CHECK(lines(r.output).size() == 1);
   CHECK_THAT(r.output, Catch::StartsWith("prtbake: error: ") && Catch::Contains("(Portable Computing Language)") &&
                            Catch::Contains("out of device memory"));
   CHECK(filesUnder(dir + "/out").empty());
+  // `prtbake env` on the same file and device: bands of 32 MiB fit.
+  const CliResult banded = runShell("POCL_MEMORY_LIMIT=1 " + cli() + "env '" + dir + "/big.exr' -o '" + dir +
+                                    "/sh.json' --device cpu --quiet");
+  INFO(banded.output);
+  CHECK(banded.exitCode == 0);
+  CHECK(fileExists(dir + "/sh.json"));
 }

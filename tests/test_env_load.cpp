@@ -554,6 +554,101 @@ TEST_CASE("Grey (Y) and luminance/chroma OpenEXR files become RGB", "[env_load]"
     for (int k = 0; k < 3; ++k) REQUIRE(std::abs(c.rgb[3 * i + k] - want[k]) < kYcRelTol * want[k]);
 }
 
+TEST_CASE("Lat-long OpenEXR files read in bands give the whole map's texels, checks and coefficients", "[env_load]") {
+  const std::string dir = test::tempDir("env-bands");
+  const int w = 64, h = 32;
+  std::vector<float> r(size_t(w) * h), g(r.size()), b(r.size());
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = size_t(y) * w + size_t(x);
+      r[i] = 1.0f + std::sin(0.3f * float(x)) * 0.5f, g[i] = 0.2f + 0.05f * float(y), b[i] = 0.5f + 0.01f * float(x + y);
+    }
+  r[5 * w + 7] = g[5 * w + 7] = b[5 * w + 7] = 1e4f;  // a sun
+  ExrWriteOptions latlong;
+  latlong.envmap = 0;
+  writeExr(dir + "/ll.exr", w, h, {{"R", r.data()}, {"G", g.data()}, {"B", b.data()}}, latlong);
+  latlong.half = true;
+  writeExr(dir + "/half.exr", w, h, {{"R", r.data()}, {"G", g.data()}, {"B", b.data()}}, latlong);
+  writeExr(dir + "/grey.exr", w, h, {{"Y", r.data()}});  // no envmap attribute: lat-long by its shape
+  std::vector<float> bad = r;
+  bad[3] = std::numeric_limits<float>::quiet_NaN(), bad[100] = -1.0f, bad[size_t(w) * h - 1] = INFINITY;
+  writeExr(dir + "/bad.exr", w, h, {{"R", bad.data()}, {"G", g.data()}, {"B", b.data()}});
+
+  // Bands of 5 rows: 7 bands, the last of 2 rows.
+  const size_t fiveRows = 12 * size_t(w) * 5;
+  auto banded = [&](const std::string& path, const EnvLoadOptions& lo) {
+    EnvMap all;
+    std::vector<int> firsts;
+    REQUIRE(forEachLatLongBand(
+        path, lo, fiveRows,
+        [&](EnvMap& band, int first) {
+          firsts.push_back(first);
+          all.rgb.insert(all.rgb.end(), band.rgb.begin(), band.rgb.end());
+          all.halfRgb.insert(all.halfRgb.end(), band.halfRgb.begin(), band.halfRgb.end());
+        },
+        &all));
+    CHECK(firsts == std::vector<int>{0, 5, 10, 15, 20, 25, 30});
+    return all;
+  };
+  EnvProjectOptions po;
+  po.order = 4;
+  const double yaw = 30.0;
+  for (const std::string name : {"ll.exr", "half.exr", "grey.exr", "bad.exr"})
+    for (const bool compact : {false, true}) {
+      INFO(name << (compact ? " compact" : ""));
+      EnvLoadOptions lo;
+      lo.compact = compact;
+      lo.clampInvalid = name == "bad.exr";
+      const EnvMap whole = loadEnvironment(dir + "/" + name, lo);
+      const EnvMap parts = banded(dir + "/" + name, lo);
+      CHECK(parts.width == whole.width);
+      CHECK(parts.height == whole.height);
+      CHECK(parts.layoutName == whole.layoutName);
+      CHECK(parts.clampedTexels == whole.clampedTexels);
+      REQUIRE(parts.storage() == whole.storage());
+      CHECK(std::vector<float>(parts.rgb.begin(), parts.rgb.end()) == std::vector<float>(whole.rgb.begin(), whole.rgb.end()));
+      CHECK(std::vector<uint16_t>(parts.halfRgb.begin(), parts.halfRgb.end()) ==
+            std::vector<uint16_t>(whole.halfRgb.begin(), whole.halfRgb.end()));
+      // The projection, band by band and whole: the same bits (row sums added in row order).
+      EnvMap rotated = whole, description;
+      rotated.yawDegrees = yaw;
+      const ShCoeffs a = projectEnvironment(test::runtime(), rotated, po).radiance;
+      const ShCoeffs c = projectEnvironmentFile(test::runtime(), dir + "/" + name, lo, yaw, po, &description, fiveRows).radiance;
+      CHECK(description.texelCount() == whole.texelCount());
+      CHECK(description.rgb.empty());
+      CHECK(a.rgb == c.rgb);
+    }
+  // Invalid values without the clamp option: the whole map's count, in the same words.
+  std::string wholeError, bandError;
+  try {
+    loadEnvironment(dir + "/bad.exr");
+  } catch (const InputError& e) {
+    wholeError = e.what();
+  }
+  EnvMap header;
+  CHECK_THROWS_AS(forEachLatLongBand(dir + "/bad.exr", {}, fiveRows, [](EnvMap&, int) {}, &header), InputError);
+  try {
+    EnvMap description;
+    projectEnvironmentFile(test::runtime(), dir + "/bad.exr", {}, 0.0, po, &description, fiveRows);
+  } catch (const InputError& e) {
+    bandError = e.what();
+  }
+  CHECK_THAT(wholeError, Catch::Contains("3 invalid values (2 NaN/Inf, 1 negative)"));
+  CHECK(bandError == wholeError);
+  // Other maps are not read in bands.
+  const std::vector<float> cross(size_t(4 * 8) * 3 * 8 * 3, 1.0f);
+  REQUIRE(stbi_write_hdr((dir + "/ll.hdr").c_str(), w, h, 3, cross.data()) != 0);
+  writeExr(dir + "/cross.exr", 32, 24, {{"R", cross.data()}});
+  EnvLoadOptions forced;
+  forced.layout = "cross";
+  int calls = 0;
+  auto count = [&](EnvMap&, int) { ++calls; };
+  CHECK_FALSE(forEachLatLongBand(dir + "/ll.hdr", {}, fiveRows, count, &header));
+  CHECK_FALSE(forEachLatLongBand(dir + "/cross.exr", {}, fiveRows, count, &header));
+  CHECK_FALSE(forEachLatLongBand(dir + "/ll.exr", forced, fiveRows, count, &header));
+  CHECK(calls == 0);
+}
+
 TEST_CASE("8-bit images use the exact sRGB EOTF, grey and alpha become RGB", "[env_load]") {
   const int h = 16, w = 32;
   const std::string dir = test::tempDir("env-srgb");

@@ -12,7 +12,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
@@ -115,9 +114,12 @@ std::string readFile(const std::string& path) {
   checkInputMemory(path, "reading the file (" + std::to_string(st.st_size) + " bytes)", double(st.st_size));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  // Read into one buffer of the file's size (a string stream would hold two or three copies).
+  std::string bytes(size_t(st.st_size), '\0');
+  in.read(bytes.data(), std::streamsize(bytes.size()));
+  bytes.resize(size_t(in.gcount()));
+  if (in.bad()) throw InputError(path, "cannot read");
+  return bytes;
 }
 
 }  // namespace prtbake

@@ -26,6 +26,7 @@
 #include <mutex>
 #include <thread>
 
+#include "env_validate.h"
 #include "exr_cube.h"
 #include "image_read.h"
 #include "prtbake/envmap.h"
@@ -322,6 +323,46 @@ EnvMap loadEnvironment(const std::string& path, const EnvLoadOptions& options) {
   }
   validateEnvironment(env, options.clampInvalid);
   return env;
+}
+
+bool forEachLatLongBand(const std::string& path, const EnvLoadOptions& options, size_t bandBytes,
+                        const std::function<void(EnvMap& band, int firstRow)>& band, EnvMap* header) {
+  if (options.layout != "auto" && options.layout != "latlong") return false;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || !detail::isOpenExr(path)) return false;
+  // The library decodes up to 256 lines at a time (DWAB chunks); bands are checked as read.
+  detail::ExrRowReader reader(path, options.compact, 256);
+  const int w = reader.width(), h = reader.height();
+  const bool latlong = reader.envmap() == 0 || (reader.envmap() == -1 && (options.layout == "latlong" || w == 2 * h));
+  if (!reader.rowsReadable() || !latlong || w != 2 * h) return false;
+  *header = EnvMap{};
+  header->layout = EnvLayout::LatLong;
+  header->width = w, header->height = h;
+  header->source = path;
+  header->inputFiles = {path};
+  header->layoutName = "latlong";
+  // Whole chunks of 32 lines (every compression's but DWAB's) where the band allows.
+  int rows = int(std::clamp<size_t>(bandBytes / (12 * size_t(w)), 1, size_t(h)));
+  if (rows > 32) rows -= rows % 32;
+  detail::InvalidTexels bad;
+  for (int y0 = 0; y0 < h; y0 += rows) {
+    const int y1 = std::min(h, y0 + rows);
+    Image img;
+    reader.read(y0, y1, img);
+    EnvMap texels;
+    texels.layout = EnvLayout::LatLong;
+    texels.width = w, texels.height = y1 - y0;
+    texels.rgb = std::move(img.rgb);
+    texels.halfRgb = std::move(img.halfRgb);
+    texels.source = path;
+    // Clamped whatever the option, so that bands after an invalid one stay projectable.
+    const detail::InvalidTexels b = detail::countInvalidTexels(texels, true);
+    bad.values += b.values, bad.nonFinite += b.nonFinite;
+    if (bad.values == 0 || options.clampInvalid) band(texels, y0);
+  }
+  if (bad.values > 0 && !options.clampInvalid) throw detail::invalidTexelsError(path, bad);
+  header->clampedTexels = bad.values;
+  return true;
 }
 
 }  // namespace prtbake

@@ -150,9 +150,12 @@ std::string detail::envProjectOptions(int order, int vectorWidth, EnvStorage sto
          " -DENV_TEXELS=" + std::to_string(int(storage));
 }
 
-EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvProjectOptions& options) {
-  checkOrder(options.order);
-  if (env.texelCount() == 0) throw InputError(env.source, "empty environment");
+namespace {
+
+// Adds the radiance of env's texels to `radiance`, row partial sums in row order. A lat-long
+// `env` may hold a band of rows only: rows firstRow.. of a map fullHeight rows high.
+void addProjection(Runtime& rt, const EnvMap& env, int firstRow, int fullHeight, const EnvProjectOptions& options,
+                   ShCoeffs& radiance, EnvProjectResult& result) {
   const int order = options.order, nc = order * order;
   const int vw = options.vectorWidth ? options.vectorWidth : vectorWidth(rt, order);
   if (vw != 1 && vw != 8 && vw != 16) throw UsageError("vector width", "must be 1, 8 or 16");
@@ -166,8 +169,6 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
                                 moments ? "project_cube_moments" : cube ? "project_cube" : "project_latlong", buildOptions);
   const int perRow = moments ? 3 * order * (order + 1) / 2 : 3 * nc;
 
-  EnvProjectResult result;
-  result.texels = (long long)env.texelCount();
   const auto t0 = std::chrono::steady_clock::now();
   const cl_mem_flags hostFlags =
       rt.info().type == "cpu" ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;  // zero copy on CPU devices
@@ -208,7 +209,7 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
     kernel.setArg(arg++, n);
     kernel.setArg(arg++, partials);
   } else {
-    const int w = env.width, h = env.height;
+    const int w = env.width, h = env.height, fullH = fullHeight;
     table1.resize(2 * size_t(w));
     for (int c = 0; c < w; ++c) {
       const double lambda = -2.0 * kPi * ((c + 0.5) / w - 0.5) + yaw;
@@ -216,12 +217,13 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
       table1[size_t(w + c)] = float(std::cos(lambda));
     }
     table2.resize(3 * size_t(h));
-    for (int r = 0; r < h; ++r) {
-      const double phi = kPi * (0.5 - (r + 0.5) / h);
-      const double top = kPi * (0.5 - double(r) / h), bottom = kPi * (0.5 - double(r + 1) / h);
-      table2[3 * size_t(r)] = float(std::sin(phi));
-      table2[3 * size_t(r) + 1] = float(std::cos(phi));
-      table2[3 * size_t(r) + 2] = float((2.0 * kPi / w) * (std::sin(top) - std::sin(bottom)));
+    for (int i = 0; i < h; ++i) {
+      const int r = firstRow + i;
+      const double phi = kPi * (0.5 - (r + 0.5) / fullH);
+      const double top = kPi * (0.5 - double(r) / fullH), bottom = kPi * (0.5 - double(r + 1) / fullH);
+      table2[3 * size_t(i)] = float(std::sin(phi));
+      table2[3 * size_t(i) + 1] = float(std::cos(phi));
+      table2[3 * size_t(i) + 2] = float((2.0 * kPi / w) * (std::sin(top) - std::sin(bottom)));
     }
     buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
     buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
@@ -233,7 +235,7 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
     kernel.setArg(5, h);
     kernel.setArg(6, partials);
   }
-  result.uploadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  result.uploadSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   // One row per work-item; on CPUs small work-groups (4 rows) keep the split over
   // PoCL's threads even while amortising the per-group launch cost.
@@ -243,11 +245,9 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   rt.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global), cl::NDRange(local), nullptr, &done);
   std::vector<float> sums(rows * size_t(perRow));
   rt.queue().enqueueReadBuffer(partials, CL_TRUE, 0, sums.size() * sizeof(float), sums.data());
-  result.kernelSeconds = eventSeconds(done);
+  result.kernelSeconds += eventSeconds(done);
+  result.texels += (long long)env.texelCount();
 
-  ShCoeffs radiance;
-  radiance.order = order;
-  radiance.rgb.assign(size_t(nc), Rgb{0, 0, 0});
   if (moments) {
     addRowMoments(env, order, table2, sums, radiance);
   } else {
@@ -257,17 +257,63 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
         for (int k = 0; k < nc; ++k) radiance.rgb[size_t(k)][size_t(ch)] += double(s[ch * nc + k]);
     }
   }
+}
+
+ShCoeffs zeroCoeffs(int order) {
+  ShCoeffs c;
+  c.order = order;
+  c.rgb.assign(size_t(order) * size_t(order), Rgb{0, 0, 0});
+  return c;
+}
+
+// The radiance checked, windowed and turned into the quantity asked for.
+void finishProjection(const ShCoeffs& radiance, const std::string& source, const EnvProjectOptions& options,
+                      EnvProjectResult& result) {
   for (const auto& c : radiance.rgb)
     for (double v : c)
-      if (!std::isfinite(v)) throw InputError(env.source, "projection overflowed (radiance too large for float)");
+      if (!std::isfinite(v)) throw InputError(source, "projection overflowed (radiance too large for float)");
   result.radiance = radiance;
   if (options.window == ShWindow::Auto) {
     result.windowWeights =
         deringingWindow(radiance, &result.autoWindowLambda, &result.minIrradianceBefore, &result.minIrradianceAfter);
   } else {
-    result.windowWeights = windowWeights(options.window, order);
+    result.windowWeights = windowWeights(options.window, options.order);
   }
   result.coeffs = applyWindowAndQuantity(radiance, result.windowWeights, options.quantity);
+}
+
+}  // namespace
+
+EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvProjectOptions& options) {
+  checkOrder(options.order);
+  if (env.texelCount() == 0) throw InputError(env.source, "empty environment");
+  EnvProjectResult result;
+  ShCoeffs radiance = zeroCoeffs(options.order);
+  addProjection(rt, env, 0, env.height, options, radiance, result);
+  finishProjection(radiance, env.source, options, result);
+  return result;
+}
+
+EnvProjectResult projectEnvironmentFile(Runtime& rt, const std::string& path, const EnvLoadOptions& loadOptions,
+                                        double yawDegrees, const EnvProjectOptions& options, EnvMap* env,
+                                        size_t bandBytes) {
+  checkOrder(options.order);
+  EnvProjectResult result;
+  ShCoeffs radiance = zeroCoeffs(options.order);
+  const bool streamed = forEachLatLongBand(
+      path, loadOptions, bandBytes,
+      [&](EnvMap& band, int firstRow) {
+        band.yawDegrees = yawDegrees;
+        addProjection(rt, band, firstRow, env->height, options, radiance, result);
+      },
+      env);
+  if (!streamed) {
+    *env = loadEnvironment(path, loadOptions);
+    env->yawDegrees = yawDegrees;
+    return projectEnvironment(rt, *env, options);
+  }
+  env->yawDegrees = yawDegrees;
+  finishProjection(radiance, path, options, result);
   return result;
 }
 

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "env_validate.h"
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
 
@@ -125,38 +126,51 @@ void validateEnvironment(EnvMap& env, bool clampInvalid) {
   if (env.layout == EnvLayout::LatLong && env.width != 2 * env.height)
     throw InputError(src, "a lat-long map must be twice as wide as high (got " + std::to_string(env.width) +
                               "x" + std::to_string(env.height) + ")");
+  const detail::InvalidTexels bad = detail::countInvalidTexels(env, clampInvalid);
+  if (bad.values == 0) return;
+  if (!clampInvalid) throw detail::invalidTexelsError(src, bad);
+  env.clampedTexels += bad.values;
+}
+
+namespace detail {
+
+InvalidTexels countInvalidTexels(EnvMap& env, bool clamp) {
+  const std::string& src = env.source.empty() ? std::string("environment") : env.source;
   const size_t values = env.storage() == EnvStorage::Code8 ? env.codes.size()
                         : env.storage() == EnvStorage::Half ? env.halfRgb.size()
                                                              : env.rgb.size();
   if (values != env.texelCount() * 3) throw InputError(src, "pixel data has the wrong size");
-  long long bad = 0, nonFinite = 0;
+  InvalidTexels bad;
   if (env.storage() == EnvStorage::Float) {
     for (float& v : env.rgb) {
       if (!(v >= 0.0f) || std::isinf(v)) {
-        ++bad;
-        if (!std::isfinite(v)) ++nonFinite;
-        if (clampInvalid) v = 0.0f;
+        ++bad.values;
+        if (!std::isfinite(v)) ++bad.nonFinite;
+        if (clamp) v = 0.0f;
       }
     }
   } else if (env.storage() == EnvStorage::Half) {
     for (uint16_t& h : env.halfRgb) {
       const bool special = (h & 0x7c00u) == 0x7c00u, negative = (h & 0x8000u) && (h & 0x7fffu);
       if (special || negative) {
-        ++bad;
-        if (special) ++nonFinite;
-        if (clampInvalid) h = 0;
+        ++bad.values;
+        if (special) ++bad.nonFinite;
+        if (clamp) h = 0;
       }
     }
   } else {
     for (float v : env.codeToLinear)
       if (!(v >= 0.0f) || std::isinf(v)) throw InputError(src, "invalid 8-bit decoding table");
   }
-  if (bad == 0) return;
-  if (!clampInvalid)
-    throw InputError(src, std::to_string(bad) + " invalid values (" + std::to_string(nonFinite) +
-                              " NaN/Inf, " + std::to_string(bad - nonFinite) +
-                              " negative); use --clamp-invalid to replace them by 0");
-  env.clampedTexels += bad;
+  return bad;
 }
+
+InputError invalidTexelsError(const std::string& source, const InvalidTexels& bad) {
+  return InputError(source, std::to_string(bad.values) + " invalid values (" + std::to_string(bad.nonFinite) +
+                                " NaN/Inf, " + std::to_string(bad.values - bad.nonFinite) +
+                                " negative); use --clamp-invalid to replace them by 0");
+}
+
+}  // namespace detail
 
 }  // namespace prtbake

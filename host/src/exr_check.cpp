@@ -1,10 +1,15 @@
 // The OpenEXR header walk (exr_check.h).
 #include "exr_check.h"
 
-#include <cstdint>
-#include <cstring>
+#include <sys/stat.h>
 
-#include "prtbake/atomic_file.h"
+#include <algorithm>
+#include <cerrno>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+
 #include "prtbake/error.h"
 
 namespace prtbake::detail {
@@ -46,12 +51,37 @@ size_t fixedValueSize(const std::string& type) {
   return 0;
 }
 
+// The header, attributes and offset table are at the start of the file: only this much of
+// it is read for the walk (a file's pixels may be gigabytes).
+constexpr size_t kHeaderBytes = size_t(64) << 20;
+
+// The first `most` bytes of the file, and its size.
+std::string readPrefix(const std::string& path, size_t most, size_t* fileSize) {
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  struct stat st {};
+  if (!f || ::fstat(::fileno(f.get()), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  if (S_ISDIR(st.st_mode)) throw InputError(path, "is a directory, expected a file");
+  *fileSize = size_t(st.st_size);
+  std::string b(std::min(most, *fileSize), '\0');
+  b.resize(std::fread(b.data(), 1, b.size(), f.get()));
+  if (std::ferror(f.get())) throw InputError(path, std::string("cannot read: ") + std::strerror(errno));
+  return b;
+}
+
 }  // namespace
 
 ExrHeaderFacts checkExrHeader(const std::string& path) {
-  const std::string b = readFile(path);
+  size_t fileSize = 0;
+  const std::string b = readPrefix(path, kHeaderBytes, &fileSize);
   auto corrupt = [&](const std::string& what) { return InputError(path, "corrupt OpenEXR header: " + what); };
   if (b.size() < 8) throw InputError(path, "truncated OpenEXR file (" + std::to_string(b.size()) + " bytes)");
+  const bool whole = b.size() == fileSize;
+  // Where the walk needs a byte beyond b: past the end of the file, or of the prefix read.
+  auto pastEnd = [&](const std::string& what) {
+    return whole ? corrupt(what + " runs past the end of the file")
+                 : InputError(path, "OpenEXR header longer than " + std::to_string(kHeaderBytes >> 20) +
+                                        " MiB: not supported (" + what + " runs past it)");
+  };
   const uint32_t flags = uint32_t(le32(b, 4)) & ~0xffu;
   const size_t maxName = (flags & kLongNamesFlag) ? 255 : 31;
   const bool multipart = (flags & kMultipartFlag) != 0;
@@ -61,32 +91,33 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
   // A null-terminated string of at most maxName characters at pos.
   auto readName = [&](const char* what) {
     const size_t end = b.find('\0', pos);
-    if (end == std::string::npos) throw corrupt(std::string("a ") + what + " runs past the end of the file");
+    if (end == std::string::npos) throw pastEnd(std::string("a ") + what);
     if (end - pos > maxName) throw corrupt(std::string("a ") + what + " is longer than " + std::to_string(maxName) + " bytes");
     std::string s = b.substr(pos, end - pos);
     pos = end + 1;
     return s;
   };
   for (int part = 0;; ++part) {
-    if (pos >= b.size()) throw corrupt("the header runs past the end of the file");
+    if (pos >= b.size()) throw pastEnd("the header");
     if (b[pos] == '\0') {  // an empty header: the end of a multi-part file's header list
       if (part == 0) throw corrupt("no attributes");
       ++pos;
       break;
     }
     for (;;) {  // attributes of one header
-      if (pos >= b.size()) throw corrupt("the header runs past the end of the file");
+      if (pos >= b.size()) throw pastEnd("the header");
       if (b[pos] == '\0') {
         ++pos;
         break;
       }
       const std::string name = readName("attribute name"), type = readName("attribute type");
-      if (b.size() - pos < 4) throw corrupt("attribute '" + name + "' runs past the end of the file");
+      if (b.size() - pos < 4) throw pastEnd("attribute '" + name + "'");
       const int32_t size = le32(b, pos);
       pos += 4;
-      if (size < 0 || size_t(size) > b.size() - pos)
+      if (size < 0 || size_t(size) > fileSize - pos)
         throw corrupt("attribute '" + name + "' claims " + std::to_string(size) + " bytes, the file has " +
-                      std::to_string(b.size() - pos) + " left");
+                      std::to_string(fileSize - pos) + " left");
+      if (size_t(size) > b.size() - pos) throw pastEnd("attribute '" + name + "'");
       // The library reads some values by their content rather than by the size field;
       // each such value must fill its size exactly, or the library's reading and this
       // walk part ways (a chlist one byte longer than its size had the library take
@@ -135,10 +166,10 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
     const int lines = linesPerChunk(compression);
     if (lines > 0) {
       const double tableBytes = 8.0 * double((facts.height + lines - 1) / lines);
-      if (tableBytes > double(b.size() - pos))
+      if (tableBytes > double(fileSize - pos))
         throw InputError(path, "truncated OpenEXR file: the offset table of its " + std::to_string(facts.height) +
                                    " lines needs " + std::to_string((long long)tableBytes) + " bytes, the file has " +
-                                   std::to_string(b.size() - pos) + " after the header");
+                                   std::to_string(fileSize - pos) + " after the header");
     }
   }
   return facts;

@@ -12,6 +12,7 @@
 #include <ImfInputFile.h>
 #include <ImfRgbaFile.h>
 #include <ImfStandardAttributes.h>
+#include <ImfThreading.h>
 #include <stb/stb_image.h>
 #include <sys/stat.h>
 
@@ -23,6 +24,8 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
@@ -44,15 +47,6 @@ std::vector<unsigned char> readWholeFile(const std::string& path) {
   return bytes;
 }
 
-// Opens the file (so every format fails the same way when it cannot be opened)
-// and tells whether it starts with the OpenEXR magic number 76 2f 31 01.
-bool isOpenExr(const std::string& path) {
-  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  unsigned char b[4] = {0, 0, 0, 0};
-  return std::fread(b, 1, 4, f.get()) == 4 && b[0] == 0x76 && b[1] == 0x2f && b[2] == 0x31 && b[3] == 0x01;
-}
-
 // Checked before anything of the image's size is allocated. `bytesPerPixel`: what
 // decoding holds per pixel at its peak (the float RGB result plus the decoder's copy).
 void checkSize(const std::string& path, long long w, long long h, double bytesPerPixel) {
@@ -60,81 +54,36 @@ void checkSize(const std::string& path, long long w, long long h, double bytesPe
   checkInputMemory(path, "a " + std::to_string(w) + "x" + std::to_string(h) + " image", double(w) * double(h) * bytesPerPixel);
 }
 
-Image readOpenExr(const std::string& path, bool compact) {
-  const ExrHeaderFacts facts = checkExrHeader(path);  // before the library allocates what the header claims
-  if (facts.width > 0 && facts.height > 0) checkSize(path, facts.width, facts.height, 12);
-  Image img;
-  img.format = "OpenEXR";
-  // Imf::InputFile reads scanline and tiled files alike; for a tiled mip- or
-  // rip-mapped file it reads level (0, 0), the full resolution.
-  Imf::InputFile file(path.c_str());
-  const Imf::Header& header = file.header();
-  const Imath::Box2i dw = header.dataWindow();
-  const long long w = (long long)dw.max.x - dw.min.x + 1, h = (long long)dw.max.y - dw.min.y + 1;
-  checkSize(path, w, h, 12);
-  img.width = int(w), img.height = int(h);
-  img.dataMinX = dw.min.x, img.dataMinY = dw.min.y;
-  if (Imf::hasEnvmap(header)) {
-    const Imf::Envmap e = Imf::envmap(header);
-    if (e == Imf::ENVMAP_LATLONG) img.envmap = 0;
-    else if (e == Imf::ENVMAP_CUBE) img.envmap = 1;
-    else throw InputError(path, "unknown OpenEXR envmap attribute value " + std::to_string(int(e)));
-  }
-  const Imf::ChannelList& ch = header.channels();
-  const bool hasRgb = ch.findChannel("R") || ch.findChannel("G") || ch.findChannel("B");
-  const bool hasY = ch.findChannel("Y") != nullptr;
-  const bool hasChroma = ch.findChannel("RY") || ch.findChannel("BY");
-  const size_t n = size_t(w) * size_t(h);
-  // Compact: every colour channel the file has is half, so it is read as halves.
-  bool allHalf = compact && (hasRgb || (hasY && !hasChroma));
-  for (const char* c : {"R", "G", "B", "Y"})
-    if (const Imf::Channel* ch = header.channels().findChannel(c); ch && ch->type != Imf::HALF) allHalf = false;
-  if (allHalf) {
-    img.halfRgb.resize(3 * n);  // every channel is written (OpenEXR fills absent ones with 0)
-    Imf::FrameBuffer fb;
-    const size_t xs = 3 * sizeof(uint16_t), ys = xs * size_t(w);
-    const char* names[3] = {"R", "G", "B"};
-    for (int c = 0; c < 3; ++c)
-      fb.insert(hasRgb ? names[c] : "Y", Imf::Slice::Make(Imf::HALF, img.halfRgb.data() + c, dw, xs, ys));
-    file.setFrameBuffer(fb);
-    file.readPixels(dw.min.y, dw.max.y);
-    return img;
-  }
-  img.rgb.resize(3 * n);  // every channel is written (OpenEXR fills absent ones with 0)
-
-  if (hasRgb || (hasY && !hasChroma)) {
-    // Float slices into the interleaved buffer; Slice::Make offsets the base
-    // pointer by the data window origin. A missing channel keeps its fill value 0.
-    Imf::FrameBuffer fb;
-    const size_t xs = 3 * sizeof(float), ys = xs * size_t(w);
-    if (hasRgb) {
-      const char* names[3] = {"R", "G", "B"};
-      for (int c = 0; c < 3; ++c)
-        fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, img.rgb.data() + c, dw, xs, ys));
-      file.setFrameBuffer(fb);
-      file.readPixels(dw.min.y, dw.max.y);
-    } else {
-      fb.insert("Y", Imf::Slice::Make(Imf::FLOAT, img.rgb.data(), dw, xs, ys));
-      file.setFrameBuffer(fb);
-      file.readPixels(dw.min.y, dw.max.y);
-      for (size_t i = 0; i < n; ++i) img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = img.rgb[3 * i];
-    }
-    return img;
-  }
-  if (hasY && hasChroma) {
-    // Luminance/chroma images: RgbaInputFile converts them to RGB (in half).
-    Imf::RgbaInputFile rgbaFile(path.c_str());
-    std::vector<Imf::Rgba> px(n);
-    rgbaFile.setFrameBuffer(px.data() - dw.min.x - ptrdiff_t(dw.min.y) * ptrdiff_t(w), 1, size_t(w));
-    rgbaFile.readPixels(dw.min.y, dw.max.y);
-    for (size_t i = 0; i < n; ++i) {
-      img.rgb[3 * i] = px[i].r, img.rgb[3 * i + 1] = px[i].g, img.rgb[3 * i + 2] = px[i].b;
-    }
-    return img;
-  }
+// The image's channels, for the error when it has none that prtbake reads.
+std::string channelNames(const Imf::ChannelList& ch) {
   std::string names;
   for (auto it = ch.begin(); it != ch.end(); ++it) names += std::string(names.empty() ? "" : ", ") + it.name();
-  throw InputError(path, "no R, G, B or Y channel (channels: " + (names.empty() ? "none" : names) + ")");
+  return names.empty() ? "none" : names;
+}
+
+Image readOpenExr(const std::string& path, bool compact) {
+  ExrRowReader rows(path, compact, std::numeric_limits<long long>::max());
+  checkSize(path, rows.width(), rows.height(), 12);
+  if (rows.rowsReadable()) {
+    Image img;
+    rows.read(0, rows.height(), img);
+    return img;
+  }
+  // Luminance/chroma images: RgbaInputFile converts them to RGB (in half).
+  Image img;
+  img.format = "OpenEXR";
+  img.width = rows.width(), img.height = rows.height();
+  img.envmap = rows.envmap();
+  Imf::RgbaInputFile rgbaFile(path.c_str());
+  const Imath::Box2i dw = rgbaFile.dataWindow();
+  img.dataMinX = dw.min.x, img.dataMinY = dw.min.y;
+  const size_t n = size_t(img.width) * size_t(img.height);
+  std::vector<Imf::Rgba> px(n);
+  rgbaFile.setFrameBuffer(px.data() - dw.min.x - ptrdiff_t(dw.min.y) * ptrdiff_t(img.width), 1, size_t(img.width));
+  rgbaFile.readPixels(dw.min.y, dw.max.y);
+  img.rgb.resize(3 * n);
+  for (size_t i = 0; i < n; ++i) img.rgb[3 * i] = px[i].r, img.rgb[3 * i + 1] = px[i].g, img.rgb[3 * i + 2] = px[i].b;
+  return img;
 }
 
 // stb_image's Radiance decoder loops forever on a run-length count of 0, which is
@@ -266,6 +215,99 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
 }
 
 }  // namespace
+
+struct ExrRowReader::File {
+  explicit File(const std::string& path) : file(path.c_str()) {}
+  Imf::InputFile file;
+};
+
+ExrRowReader::ExrRowReader(const std::string& path, bool compact, long long rowsAtOnce) : path_(path) {
+  guard([&] {
+    // Before the library allocates what the header claims: the header itself, and what the
+    // caller will read at once.
+    const ExrHeaderFacts facts = checkExrHeader(path);
+    // The library decompresses the chunks of a read on this many threads (none by default).
+    static std::once_flag threads;
+    std::call_once(threads, [] { Imf::setGlobalThreadCount(int(std::max(1u, std::thread::hardware_concurrency()))); });
+    if (facts.width > 0 && facts.height > 0) checkSize(path, facts.width, std::min(facts.height, rowsAtOnce), 12);
+    file_ = std::make_unique<File>(path);
+    const Imf::Header& header = file_->file.header();
+    const Imath::Box2i dw = header.dataWindow();
+    const long long w = (long long)dw.max.x - dw.min.x + 1, h = (long long)dw.max.y - dw.min.y + 1;
+    if (w <= 0 || h <= 0) throw InputError(path, "empty image");
+    if (w > std::numeric_limits<int>::max() || h > std::numeric_limits<int>::max())
+      throw InputError(path, "image too large (" + std::to_string(w) + "x" + std::to_string(h) + ")");
+    width_ = int(w), height_ = int(h), minX_ = dw.min.x, minY_ = dw.min.y;
+    if (Imf::hasEnvmap(header)) {
+      const Imf::Envmap e = Imf::envmap(header);
+      if (e == Imf::ENVMAP_LATLONG) envmap_ = 0;
+      else if (e == Imf::ENVMAP_CUBE) envmap_ = 1;
+      else throw InputError(path, "unknown OpenEXR envmap attribute value " + std::to_string(int(e)));
+    }
+    const Imf::ChannelList& ch = header.channels();
+    hasRgb_ = ch.findChannel("R") || ch.findChannel("G") || ch.findChannel("B");
+    const bool hasY = ch.findChannel("Y") != nullptr, hasChroma = ch.findChannel("RY") || ch.findChannel("BY");
+    if (!hasRgb_ && !hasY) throw InputError(path, "no R, G, B or Y channel (channels: " + channelNames(ch) + ")");
+    readable_ = hasRgb_ || !hasChroma;
+    // Compact: every colour channel the file has is half, so it is read as halves.
+    half_ = compact && readable_;
+    for (const char* c : {"R", "G", "B", "Y"})
+      if (const Imf::Channel* p = ch.findChannel(c); p && p->type != Imf::HALF) half_ = false;
+  });
+}
+
+ExrRowReader::~ExrRowReader() = default;
+
+void ExrRowReader::read(int y0, int y1, Image& band) {
+  PRTBAKE_CHECK(readable_ && 0 <= y0 && y0 < y1 && y1 <= height_, "OpenEXR rows out of range");
+  guard([&] {
+    checkSize(path_, width_, y1 - y0, 12);
+    band = Image{};
+    band.format = "OpenEXR";
+    band.width = width_, band.height = y1 - y0;
+    band.envmap = envmap_;
+    band.dataMinX = minX_, band.dataMinY = minY_ + y0;
+    const size_t n = size_t(width_) * size_t(y1 - y0);
+    // Slices into the interleaved band (every channel is written: OpenEXR fills absent ones
+    // with 0), based so that row y0 of the data window lands on the band's first row.
+    Imf::FrameBuffer fb;
+    const Imf::PixelType type = half_ ? Imf::HALF : Imf::FLOAT;
+    const size_t bytes = half_ ? sizeof(uint16_t) : sizeof(float), xs = 3 * bytes, ys = xs * size_t(width_);
+    char* first = half_ ? reinterpret_cast<char*>((band.halfRgb.resize(3 * n), band.halfRgb.data()))
+                        : reinterpret_cast<char*>((band.rgb.resize(3 * n), band.rgb.data()));
+    const Imath::Box2i rows(Imath::V2i(minX_, minY_ + y0), Imath::V2i(minX_ + width_ - 1, minY_ + y1 - 1));
+    const char* names[3] = {"R", "G", "B"};
+    for (int c = 0; c < (hasRgb_ ? 3 : 1); ++c)
+      fb.insert(hasRgb_ ? names[c] : "Y", Imf::Slice::Make(type, first + size_t(c) * bytes, rows, xs, ys));
+    file_->file.setFrameBuffer(fb);
+    file_->file.readPixels(minY_ + y0, minY_ + y1 - 1);
+    if (!hasRgb_)  // grey: Y into all three
+      for (size_t i = 0; i < n; ++i) {
+        if (half_) band.halfRgb[3 * i + 1] = band.halfRgb[3 * i + 2] = band.halfRgb[3 * i];
+        else band.rgb[3 * i + 1] = band.rgb[3 * i + 2] = band.rgb[3 * i];
+      }
+  });
+}
+
+void ExrRowReader::guard(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw InputError(path_, "out of memory while reading the image");
+  } catch (const std::exception& e) {
+    // OpenEXR (Iex) reports truncated or malformed files with std::exception subclasses.
+    throw InputError(path_, std::string("cannot read OpenEXR image: ") + e.what());
+  }
+}
+
+bool isOpenExr(const std::string& path) {
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  unsigned char b[4] = {0, 0, 0, 0};
+  return std::fread(b, 1, 4, f.get()) == 4 && b[0] == 0x76 && b[1] == 0x2f && b[2] == 0x31 && b[3] == 0x01;
+}
 
 double srgbToLinear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
 

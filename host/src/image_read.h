@@ -16,6 +16,7 @@
 #include <array>
 #include <cstdint>
 #include <cstdlib>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -46,6 +47,35 @@ struct Image {
 };
 
 Image readImage(const std::string& path, LdrDecode ldrDecode = LdrDecode::Srgb, bool compact = false);
+
+// An OpenEXR image read a band of rows at a time, so that the whole image need not be in
+// memory. The constructor checks the header as readImage does, and the size of
+// `rowsAtOnce` rows against the input memory limit; read(y0, y1, band) decodes the rows
+// [y0, y1) of the data window into `band` (height y1 − y0, in readImage's storage).
+// Images of R, G, B or Y channels only (rowsReadable); luminance/chroma images are
+// converted by readImage as a whole. Failures are InputErrors naming the file.
+class ExrRowReader {
+ public:
+  ExrRowReader(const std::string& path, bool compact, long long rowsAtOnce);
+  ~ExrRowReader();
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int envmap() const { return envmap_; }  // as Image::envmap
+  bool rowsReadable() const { return readable_; }
+  void read(int y0, int y1, Image& band);
+
+ private:
+  struct File;
+  void guard(const std::function<void()>& f);
+  std::string path_;
+  std::unique_ptr<File> file_;
+  int width_ = 0, height_ = 0, minX_ = 0, minY_ = 0, envmap_ = -1;
+  bool hasRgb_ = false, readable_ = false, half_ = false;
+};
+
+// Opens the file (so every format fails the same way when it cannot be opened) and tells
+// whether it starts with the OpenEXR magic number 76 2f 31 01.
+bool isOpenExr(const std::string& path);
 
 // The exact sRGB EOTF of one code value in [0, 1].
 double srgbToLinear(double c);

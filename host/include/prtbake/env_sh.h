@@ -55,6 +55,15 @@ struct EnvProjectResult {
 // The OpenCL projection (work-item row partial sums in float, summed in double on the host).
 EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvProjectOptions& options);
 
+// loadEnvironment(path, loadOptions) with yawDegrees, then projectEnvironment, with the same
+// result to the bit, except that a lat-long OpenEXR file is decoded and projected a band of
+// rows (about bandBytes of float texels) at a time, so that its texels are never all in
+// memory (forEachLatLongBand). *env receives the map's description (layout, size, files,
+// clamped texels), and its texels only when it was not read in bands.
+EnvProjectResult projectEnvironmentFile(Runtime& rt, const std::string& path, const EnvLoadOptions& loadOptions,
+                                        double yawDegrees, const EnvProjectOptions& options, EnvMap* env,
+                                        size_t bandBytes = size_t(32) << 20);
+
 // Double-precision reference: every texel's direction, solid angle and Y in double.
 ShCoeffs projectEnvironmentReference(const EnvMap& env, int order);
 

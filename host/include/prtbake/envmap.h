@@ -19,6 +19,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -85,6 +86,18 @@ struct EnvLoadOptions {
 // lat-long) or a directory holding posx/negx/posy/negy/posz/negz faces.
 // Throws InputError naming the file and what is wrong.
 EnvMap loadEnvironment(const std::string& path, const EnvLoadOptions& options = {});
+
+// A lat-long OpenEXR file (by its envmap attribute, or by its 2:1 shape when options.layout
+// is auto or latlong) read a band of rows at a time, so that its texels are never all in
+// memory: calls band(texels, firstRow) for consecutive bands of about bandBytes, each an
+// EnvMap of the full width holding rows firstRow.. of the map (texelDirection does not
+// apply to it). Bands are checked as loadEnvironment checks a map; invalid values without
+// options.clampInvalid throw after the last band, counted over the whole map. Fills
+// *header (layout, size, source, files, clamped texels; no texels). Returns false without
+// calling `band` when the file is not such a map (loadEnvironment then reads it, or says
+// what is wrong with it).
+bool forEachLatLongBand(const std::string& path, const EnvLoadOptions& options, size_t bandBytes,
+                        const std::function<void(EnvMap& band, int firstRow)>& band, EnvMap* header);
 
 // World direction (unit) and exact solid angle (sr) of one texel, in double.
 // For a cube `index` = (face·N + row)·N + col; for lat-long row·W + col.
