@@ -1,6 +1,7 @@
 // prtbake env: environment map → SH coefficients (JSON, GAMES202 light.txt).
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
@@ -41,12 +42,14 @@ int runEnv(const CommandLine& cl) {
 
   nlohmann::json autoCurve;
   bool autoMet = true;
-  Runtime rt(cl.device());
+  std::optional<Runtime> device;
+  auto runtime = [&]() -> Runtime& { return device ? *device : device.emplace(cl.device()); };
   const auto t1 = std::chrono::steady_clock::now();
   // A lat-long OpenEXR file is decoded and projected in bands: "load" is then the host's
   // share of the two (decoding, checks, sums), the rest being the device's.
   EnvMap env;
-  EnvProjectResult r = projectEnvironmentFile(rt, input, lo, yaw, po, &env);
+  EnvProjectResult r = projectEnvironmentFile(runtime, input, lo, yaw, po, &env);
+  Runtime& rt = runtime();
   const double loadSeconds = std::max(0.0, secondsSince(t1) - r.kernelSeconds - r.uploadSeconds - rt.buildSeconds());
   double autoError = 0;
   if (autoOrder) {

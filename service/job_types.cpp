@@ -73,7 +73,8 @@ ExecResult runEnv(const Job& job, ExecContext& ctx) {
     env = loadJobEnvironment(job, true, &loadSeconds);
     r = projectEnvironment(rt, env, options);
   } else {
-    r = projectEnvironmentFile(rt, job.input, jobLoadOptions(job, true), p["yaw"].get<double>(), options, &env);
+    r = projectEnvironmentFile([&]() -> Runtime& { return rt; }, job.input, jobLoadOptions(job, true),
+                               p["yaw"].get<double>(), options, &env);
   }
   const double projectSeconds = secondsSince(t1) - loadSeconds;
 

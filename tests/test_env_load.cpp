@@ -613,7 +613,7 @@ TEST_CASE("Lat-long OpenEXR files read in bands give the whole map's texels, che
       EnvMap rotated = whole, description;
       rotated.yawDegrees = yaw;
       const ShCoeffs a = projectEnvironment(test::runtime(), rotated, po).radiance;
-      const ShCoeffs c = projectEnvironmentFile(test::runtime(), dir + "/" + name, lo, yaw, po, &description, fiveRows).radiance;
+      const ShCoeffs c = projectEnvironmentFile(test::runtime, dir + "/" + name, lo, yaw, po, &description, fiveRows).radiance;
       CHECK(description.texelCount() == whole.texelCount());
       CHECK(description.rgb.empty());
       CHECK(a.rgb == c.rgb);
@@ -629,7 +629,7 @@ TEST_CASE("Lat-long OpenEXR files read in bands give the whole map's texels, che
   CHECK_THROWS_AS(forEachLatLongBand(dir + "/bad.exr", {}, fiveRows, [](EnvMap&, int) {}, &header), InputError);
   try {
     EnvMap description;
-    projectEnvironmentFile(test::runtime(), dir + "/bad.exr", {}, 0.0, po, &description, fiveRows);
+    projectEnvironmentFile(test::runtime, dir + "/bad.exr", {}, 0.0, po, &description, fiveRows);
   } catch (const InputError& e) {
     bandError = e.what();
   }

@@ -294,9 +294,9 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
   return result;
 }
 
-EnvProjectResult projectEnvironmentFile(Runtime& rt, const std::string& path, const EnvLoadOptions& loadOptions,
-                                        double yawDegrees, const EnvProjectOptions& options, EnvMap* env,
-                                        size_t bandBytes) {
+EnvProjectResult projectEnvironmentFile(const std::function<Runtime&()>& runtime, const std::string& path,
+                                        const EnvLoadOptions& loadOptions, double yawDegrees,
+                                        const EnvProjectOptions& options, EnvMap* env, size_t bandBytes) {
   checkOrder(options.order);
   EnvProjectResult result;
   ShCoeffs radiance = zeroCoeffs(options.order);
@@ -304,13 +304,13 @@ EnvProjectResult projectEnvironmentFile(Runtime& rt, const std::string& path, co
       path, loadOptions, bandBytes,
       [&](EnvMap& band, int firstRow) {
         band.yawDegrees = yawDegrees;
-        addProjection(rt, band, firstRow, env->height, options, radiance, result);
+        addProjection(runtime(), band, firstRow, env->height, options, radiance, result);
       },
       env);
   if (!streamed) {
     *env = loadEnvironment(path, loadOptions);
     env->yawDegrees = yawDegrees;
-    return projectEnvironment(rt, *env, options);
+    return projectEnvironment(runtime(), *env, options);
   }
   env->yawDegrees = yawDegrees;
   finishProjection(radiance, path, options, result);

