@@ -216,6 +216,8 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
 
 }  // namespace
 
+// Imf::InputFile reads scanline and tiled files alike; for a tiled mip- or rip-mapped file it
+// reads level (0, 0), the full resolution.
 struct ExrRowReader::File {
   explicit File(const std::string& path) : file(path.c_str()) {}
   Imf::InputFile file;
