@@ -72,8 +72,8 @@ std::string partialProblem(const jobs::Job& job, int i, int n, json* manifest) {
   const std::string path = part.outputs.front().path;
   if (report.value("partial_sha256", "") != sha256File(path))
     return "shard " + s.name() + " is not usable: " + path + " does not match its manifest's SHA-256";
-  const auto [first, count] = jobs::vertexRange(report.value("mesh_vertices", size_t(0)), i, n);
-  if (report.value("first_vertex", size_t(1) << 62) != first || report.value("vertex_count", size_t(1) << 62) != count)
+  const auto [first, count] = jobs::vertexRange(jobs::manifestInt(report, "mesh_vertices", size_t(0)), i, n);
+  if (jobs::manifestInt(report, "first_vertex", size_t(1) << 62) != first || jobs::manifestInt(report, "vertex_count", size_t(1) << 62) != count)
     return "shard " + s.name() + " is not usable: its vertex range does not match shard " + s.name();
   return "";
 }
@@ -85,9 +85,9 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
   for (int i = 0; i < n; ++i)
     if (std::string p = partialProblem(job, i, n, &manifests[size_t(i)]); !p.empty()) problems.push_back(p);
   if (!problems.empty()) return problems;
-  const size_t vertices = manifests[0]["report"].value("mesh_vertices", size_t(0));
+  const size_t vertices = jobs::manifestInt(manifests[0]["report"], "mesh_vertices", size_t(0));
   for (int i = 1; i < n; ++i)
-    if (manifests[size_t(i)]["report"].value("mesh_vertices", size_t(0)) != vertices ||
+    if (jobs::manifestInt(manifests[size_t(i)]["report"], "mesh_vertices", size_t(0)) != vertices ||
         manifests[size_t(i)]["inputs"] != manifests[0]["inputs"])
       problems.push_back("shard " + jobs::ShardSpec{i, n}.name() + " read other inputs than shard " +
                          jobs::ShardSpec{0, n}.name());
@@ -107,17 +107,17 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
     size_t rows = 0, columns = 0;
     const std::string path = jobs::partialPath(job, i, n);
     const std::vector<float> part = jobs::readPartialNpy(path, &rows, &columns);
-    if (rows != rep.value("vertex_count", size_t(0)) || columns != size_t(r.order) * r.order)
+    if (rows != jobs::manifestInt(rep, "vertex_count", size_t(0)) || columns != size_t(r.order) * r.order)
       throw InputError(path, "shape does not match the job (order " + std::to_string(r.order) + ")");
     r.coeffs.insert(r.coeffs.end(), part.begin(), part.end());
-    r.rays += rep.value("rays", uint64_t(0));
-    r.totalSamples += rep.value("total_samples", uint64_t(0));
-    r.verticesUnoccludable += rep.value("vertices_unoccludable", size_t(0));
+    r.rays += jobs::manifestInt(rep, "rays", uint64_t(0));
+    r.totalSamples += jobs::manifestInt(rep, "total_samples", uint64_t(0));
+    r.verticesUnoccludable += jobs::manifestInt(rep, "vertices_unoccludable", size_t(0));
     r.maxStdError = std::max(r.maxStdError, rep.value("standard_error_max", 0.0));
     errorSum += rep.value("standard_error_mean", 0.0) * double(rows);
-    r.bvhNodes = std::max(r.bvhNodes, rep.value("bvh_nodes", size_t(0)));
-    r.degenerateTriangles = std::max(r.degenerateTriangles, rep.value("degenerate_triangles", size_t(0)));
-    r.verticesWithoutNormal += rep.value("vertices_without_normal", size_t(0));
+    r.bvhNodes = std::max(r.bvhNodes, jobs::manifestInt(rep, "bvh_nodes", size_t(0)));
+    r.degenerateTriangles = std::max(r.degenerateTriangles, jobs::manifestInt(rep, "degenerate_triangles", size_t(0)));
+    r.verticesWithoutNormal += jobs::manifestInt(rep, "vertices_without_normal", size_t(0));
     if (r.device.empty()) r.device = rep.value("device", "");
     const json& t = rep["timings"];
     r.bvhSeconds += t.value("bvh_seconds", 0.0);
@@ -204,7 +204,7 @@ int runMerge(const CommandLine& cl) {
           }
           ++merged;
           reporter.status("[merged] " + job.label + " (" + std::to_string(n) + " shards, " +
-                          std::to_string(info.value("vertices", size_t(0))) + " vertices, " +
+                          std::to_string(jobs::manifestInt(info, "vertices", size_t(0))) + " vertices, " +
                           formatSeconds(std::chrono::duration<double>(Clock::now() - tJob).count()) + ")");
           reporter.event({{"event", "job_end"}, {"id", job.label}, {"status", "merged"}});
         } catch (const std::exception& e) {

@@ -238,14 +238,14 @@ std::vector<std::string> mergeGlossySplit(const Job& job, int n, const std::vect
   const json& p = job.params;
   const GlossyOptions o = glossyOptionsFrom(p);
   const MatrixDtype dtype = parseMatrixDtype(p["dtype"].get<std::string>());
-  const size_t vertices = manifests[0]["report"].value("mesh_vertices", size_t(0));
-  const int channels = manifests[0]["report"].value("channels", 1);
+  const size_t vertices = manifestInt(manifests[0]["report"], "mesh_vertices", size_t(0));
+  const int channels = manifestInt(manifests[0]["report"], "channels", 1);
   // The partials' data, in vertex order, after their headers: the merged file is the
   // one-process file byte for byte (same header, same values).
   std::vector<std::string> data;
   GlossyStats st;
   st.orderOut = o.orderOut, st.orderIn = o.orderIn, st.channels = channels, st.vertexCount = vertices;
-  st.samples = manifests[0]["report"].value("samples", 0);
+  st.samples = manifestInt(manifests[0]["report"], "samples", 0);
   double errSum = 0;
   const size_t elem = dtype == MatrixDtype::Float16 ? 2 : 4;
   const size_t per = size_t(channels) * o.orderOut * o.orderOut * o.orderIn * o.orderIn;
@@ -256,19 +256,19 @@ std::vector<std::string> mergeGlossySplit(const Job& job, int n, const std::vect
     if (bytes.size() < 10 || bytes.compare(0, 8, std::string("\x93NUMPY\x01\x00", 8)) != 0)
       throw InputError(path, "not a partial result: no .npy header");
     const size_t offset = 10 + (size_t(uint8_t(bytes[8])) | size_t(uint8_t(bytes[9])) << 8);
-    const size_t rows = rep.value("vertex_count", size_t(0));
+    const size_t rows = manifestInt(rep, "vertex_count", size_t(0));
     if (bytes.size() < offset || bytes.size() - offset != rows * per * elem ||
-        rep.value("channels", 0) != channels)
+        manifestInt(rep, "channels", 0) != channels)
       throw InputError(path, "shape does not match the job (orders, channels or dtype)");
     data.push_back(bytes.substr(offset));
-    st.rays += rep.value("rays", uint64_t(0));
+    st.rays += manifestInt(rep, "rays", uint64_t(0));
     st.maxStdError = std::max(st.maxStdError, rep.value("standard_error_max", 0.0));
     errSum += rep.value("standard_error_mean", 0.0) * double(rows);
-    st.verticesUnoccludable += rep.value("vertices_unoccludable", size_t(0));
-    st.verticesWithoutNormal += rep.value("vertices_without_normal", size_t(0));
-    st.degenerateTriangles = std::max(st.degenerateTriangles, rep.value("degenerate_triangles", size_t(0)));
-    st.bvhNodes = std::max(st.bvhNodes, rep.value("bvh_nodes", size_t(0)));
-    st.bouncesUsed = std::max(st.bouncesUsed, rep.value("bounces_used", 0));
+    st.verticesUnoccludable += manifestInt(rep, "vertices_unoccludable", size_t(0));
+    st.verticesWithoutNormal += manifestInt(rep, "vertices_without_normal", size_t(0));
+    st.degenerateTriangles = std::max(st.degenerateTriangles, manifestInt(rep, "degenerate_triangles", size_t(0)));
+    st.bvhNodes = std::max(st.bvhNodes, manifestInt(rep, "bvh_nodes", size_t(0)));
+    st.bouncesUsed = std::max(st.bouncesUsed, manifestInt(rep, "bounces_used", 0));
     if (st.device.empty()) st.device = rep.value("device", "");
     const json& t = rep["timings"];
     st.diffuseSeconds += t.value("diffuse_seconds", 0.0);

@@ -71,7 +71,7 @@ namespace {
 // whyOutOfDate on a parsed manifest; json::value() and operator[] throw
 // json::type_error where the manifest holds a value of another type than it should.
 std::string whyOutOfDateParsed(const Job& job, json& m) {
-  if (!m.is_object() || m.value("prtbake_manifest", 0) != kManifestFormat) return "unknown manifest format";
+  if (!m.is_object() || manifestInt(m, "prtbake_manifest", 0) != kManifestFormat) return "unknown manifest format";
   const std::string was = m.value("version", "");
   if (was != version()) return "prtbake version changed (" + was + " -> " + version() + ")";
   const json& params = m["parameters"];
@@ -88,7 +88,7 @@ std::string whyOutOfDateParsed(const Job& job, json& m) {
   for (size_t i = 0; i < job.outputs.size(); ++i) {
     const long long bytes = fileSize(job.outputs[i].path);
     if (bytes < 0) return "output missing: " + job.outputs[i].path;
-    if (outs[i].value("path", "") != job.outputs[i].path || outs[i].value("bytes", -2LL) != bytes)
+    if (outs[i].value("path", "") != job.outputs[i].path || manifestInt(outs[i], "bytes", -2LL) != bytes)
       return "output changed: " + job.outputs[i].path;
   }
   const json& ins = m["inputs"];

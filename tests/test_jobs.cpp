@@ -182,6 +182,20 @@ TEST_CASE("run: skip logic follows the manifest", "[jobs]") {
     writeText(dir + "/out/light.txt", "something else entirely");
     CHECK_THAT(plan(), Catch::Contains("[would run] sky (output changed: " + dir + "/out/light.txt)"));
   }
+  SECTION("a damaged manifest: numbers no integer type holds") {
+    // json::value would cast these floats to int and long long: undefined behaviour
+    // (UBSan, found by fuzzing); a damaged manifest only makes the job run again.
+    json m = json::parse(readText(dir + "/out/sky.json.manifest.json"));
+    m["outputs"][0]["bytes"] = 1e300;
+    writeText(dir + "/out/sky.json.manifest.json", m.dump());
+    CHECK_THAT(plan(), Catch::Contains("[would run] sky (output changed: " + dir + "/out/sky.json)"));
+    m["prtbake_manifest"] = 1.8e90;
+    writeText(dir + "/out/sky.json.manifest.json", m.dump());
+    CHECK_THAT(plan(), Catch::Contains("[would run] sky (unknown manifest format)"));
+    m["prtbake_manifest"] = 1.0;  // the format number, but as a float
+    writeText(dir + "/out/sky.json.manifest.json", m.dump());
+    CHECK_THAT(plan(), Catch::Contains("[would run] sky (unknown manifest format)"));
+  }
   SECTION("--force reruns an up-to-date job") {
     CHECK_THAT(runCli("run " + q(jobFile) + " --dry-run --force").output, Catch::Contains("[would run] sky (--force)"));
   }
