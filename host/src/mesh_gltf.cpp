@@ -3,9 +3,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sys/stat.h>
-#include <functional>
 
 #include "gltf_common.h"
 #include "prtbake/atomic_file.h"
@@ -29,6 +29,17 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
   std::string err, warn;
   const size_t slash = path.find_last_of('/');
   const std::string baseDir = slash == std::string::npos ? "." : path.substr(0, slash);
+  // tinygltf lets some malformed files end in a standard exception (vector::at on an empty
+  // list of a GLB: found by fuzzing); those are bad input like the errors it reports.
+  auto guarded = [&](const std::function<bool()>& load) {
+    try {
+      return load();
+    } catch (const Error&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw InputError(path, std::string("not a valid glTF 2.0 file: ") + e.what());
+    }
+  };
   bool ok;
   if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
     // The GLB header's version field (bytes 4..7, little-endian) is 2 for glTF 2.0;
@@ -38,8 +49,10 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
                                 uint32_t(uint8_t(bytes[6])) << 16 | uint32_t(uint8_t(bytes[7])) << 24;
     if (glbVersion != 2)
       throw InputError(path, "GLB container version " + std::to_string(glbVersion) + " (glTF 2.0 needs version 2)");
-    ok = loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
-                                     unsigned(bytes.size()), baseDir);
+    ok = guarded([&] {
+      return loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                         unsigned(bytes.size()), baseDir);
+    });
   } else {
     // External buffer and image files must be regular files: tinygltf would try to
     // read a directory as a file of size 2^63.
@@ -59,7 +72,7 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
     } catch (const nlohmann::json::exception&) {
       // not JSON: tinygltf reports the syntax error below
     }
-    ok = loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir);
+    ok = guarded([&] { return loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir); });
   }
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
