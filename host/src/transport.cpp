@@ -66,7 +66,8 @@ class Tracer {
       k.setArg(9, vis);
       std::vector<float> part(sums.size()), partSeen(seen.size());
       forEachChunk(k, samples, nv, 10, [&] {
-        rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
+        // One wait for both reads (the queue runs in order).
+        rt_.queue().enqueueReadBuffer(out, CL_FALSE, 0, part.size() * 4, part.data());
         rt_.queue().enqueueReadBuffer(vis, CL_TRUE, 0, partSeen.size() * 4, partSeen.data());
         for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
         for (size_t i = 0; i < seen.size(); ++i) seen[i] += partSeen[i];

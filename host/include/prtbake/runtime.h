@@ -75,14 +75,15 @@ class Runtime {
   // Largest work-group size the device accepts for a 1-D launch.
   size_t maxWorkGroupSize() const;
 
-  // A read-only device buffer holding `data` (written before returning). Never
-  // zero-sized: an empty vector gives a 16-byte buffer, so it can still be bound.
+  // A read-only device buffer holding `data`, copied when the buffer is created (no
+  // command and no wait on the queue: a blocking write costs a round trip to the
+  // device's threads, as much as a small launch). Never zero-sized: an empty vector
+  // gives a 16-byte buffer, so it can still be bound.
   template <class T>
   cl::Buffer upload(const std::vector<T>& data) {
     const size_t bytes = data.size() * sizeof(T);
-    cl::Buffer b(context_, CL_MEM_READ_ONLY, bytes > 16 ? bytes : 16);
-    if (bytes) queue_.enqueueWriteBuffer(b, CL_TRUE, 0, bytes, data.data());
-    return b;
+    if (!bytes) return cl::Buffer(context_, CL_MEM_READ_ONLY, 16);
+    return cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, bytes, const_cast<T*>(data.data()));
   }
 
  private:
