@@ -5,9 +5,10 @@
 // err_* are against a high-accuracy reference (named in the curve's product block);
 // wall_s and cpu_s (process CPU time, all threads) are medians over the repetitions.
 // "--tolerance E" runs are rows of the curve <case>-tolerance (param "tolerance"), each
-// followed by a comment line
+// followed by the comment lines
 //   #tolerance,PRODUCT,CASE,E,FRACTION_WITHIN_E,COUNTS
-// (COUNTS: the count of each term, '/'-separated), and every case has a "uniform" sweep of
+//   #paired,PRODUCT,CASE,E,N,TOLERANCE_S,UNIFORM_S
+// (COUNTS: the count of each term, '/'-separated; #paired: see pairedTiming), and every case has a "uniform" sweep of
 // --samples N over powers of two (curve <case>-uniform), against which make_report.py
 // finds the fastest run at the same maximum error. Curves <case>-monotone hold the
 // maximum error from 2^10 to 2^24 samples per item.
@@ -69,6 +70,37 @@ Timing timeIt(int reps, bool warm, const std::function<void()>& f) {
   std::sort(w.begin(), w.end());
   std::sort(c.begin(), c.end());
   return {w[w.size() / 2], c[c.size() / 2]};
+}
+
+// The --tolerance run beside the uniform run it is judged by: the smallest count of the
+// sweep (count, max error) whose maximum error is at most the tolerance run's, both timed in
+// alternation (medians of at least 9 pairs, enough to fill about a second), so that their
+// ratio does not move with the machine's speed between the sweeps. Writes
+//   #paired,PRODUCT,CASE,E,N,TOLERANCE_S,UNIFORM_S
+// and nothing when no count of the sweep reaches that error.
+void pairedTiming(const std::string& product, const std::string& name, double tol,
+                  const std::vector<std::pair<int, double>>& sweep, double errMax, const std::function<void()>& tolRun,
+                  const std::function<void(int)>& uniformRun) {
+  int n = 0;
+  for (const auto& [count, err] : sweep)
+    if (err <= errMax && (n == 0 || count < n)) n = count;
+  if (n == 0) return;
+  auto seconds = [](const std::function<void()>& f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  std::vector<double> a, b;
+  double spent = 0;
+  while (a.size() < 9 || (spent < 1.0 && a.size() < 41)) {
+    a.push_back(seconds(tolRun));
+    b.push_back(seconds([&] { uniformRun(n); }));
+    spent += a.back() + b.back();
+  }
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  std::fprintf(gOut, "#paired,%s,%s,%g,%d,%.6g,%.6g\n", product.c_str(), name.c_str(), tol, n, a[a.size() / 2],
+               b[b.size() / 2]);
 }
 
 void row(const std::string& product, const std::string& curve, const std::string& param, double value, Timing t,
@@ -238,6 +270,7 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       }
     }
     // The default sampler at every power of two: the uniform runs --tolerance is judged by.
+    std::vector<std::pair<int, double>> sweep;
     for (int n = 16; n <= top; n *= 2) {
       TransportOptions o = base;
       o.samples = n;
@@ -245,6 +278,7 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       const Timing t = timeIt(3, true, [&] { r = computeTransport(rt, c.mesh, o); });
       const Err e = perVertex(coeffsOf(r), ref, nc);
       row("transport", c.name + "-uniform", "samples", n, t, e.max, e.rms, double(r.totalSamples), refBound);
+      sweep.emplace_back(n, e.max);
     }
     for (double tol : {2e-2, 1e-2, 5e-3, 2e-3, 1e-3}) {
       TransportOptions o = base;
@@ -255,6 +289,11 @@ void studyTransport(Runtime& rt, int maxSamples, int refSamples) {
       row("transport", c.name + "-tolerance", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), refBound);
       std::fprintf(gOut, "#tolerance,transport,%s,%g,%.6f,%s\n", c.name.c_str(), tol,
                    fractionWithin(vertexErrors(coeffsOf(r), ref, nc), tol), countsText(r.tolerance).c_str());
+      pairedTiming("transport", c.name, tol, sweep, e.max, [&] { computeTransport(rt, c.mesh, o); }, [&](int n) {
+        TransportOptions u = base;
+        u.samples = n;
+        computeTransport(rt, c.mesh, u);
+      });
     }
     if (c.mode == TransportMode::Interreflected) continue;
     // Packet width (the only work-size knob of the transport kernels; local size is 16).
@@ -437,6 +476,7 @@ void studyLut(Runtime& rt, int size, int maxSamples) {
       }
     }
     // The default table at every power of two: the uniform runs --tolerance is judged by.
+    std::vector<std::pair<int, double>> sweep;
     for (int n = 16; n <= maxSamples; n *= 2) {
       LutOptions o = base;
       o.samples = n;
@@ -446,6 +486,7 @@ void studyLut(Runtime& rt, int size, int maxSamples) {
       rv.insert(rv.end(), r.b.begin(), r.b.end());
       const Err e = diff(rv, refv);
       row("lut", nd + "-uniform", "samples", n, t, e.max, e.rms, double(r.totalSamples), bound);
+      sweep.emplace_back(n, e.max);
     }
     for (double tol : {1e-2, 3e-3, 1e-3, 3e-4, 1e-4}) {
       LutOptions o = base;
@@ -462,6 +503,11 @@ void studyLut(Runtime& rt, int size, int maxSamples) {
       row("lut", nd + "-tolerance", "tolerance", tol, t, e.max, e.rms, double(r.totalSamples), bound);
       std::fprintf(gOut, "#tolerance,lut,%s,%g,%.6f,%d\n", nd.c_str(), tol, fractionWithin(perTexel, tol),
                    r.tolerance.samples);
+      pairedTiming("lut", nd, tol, sweep, e.max, [&] { computeLut(rt, o); }, [&](int n) {
+        LutOptions u = base;
+        u.samples = n;
+        computeLut(rt, u);
+      });
     }
   }
 }
