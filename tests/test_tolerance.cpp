@@ -135,8 +135,8 @@ TEST_CASE("Tolerance: the open cavity within E, and the same as the uniform run 
                   << e.fractionBelow(tolerance));
     CHECK(e.fractionBelow(tolerance) >= kMinFractionBelow);
     CHECK_FALSE(t.capped);
-    // The pilot ran on at most 128 vertices of the 624.
-    CHECK(t.pilotItems <= kTolerancePilotVertices);
+    // The pilot ran on one in 8 of the cavity's vertices (fewer than 1,024, more than 512).
+    CHECK(t.pilotItems == (t.items + kTolerancePilotShare / 2 - 1) / kTolerancePilotShare);
     CHECK(t.items == cavity.vertexCount());
     // The sampled vertices are those of the uniform run at that count, bit for bit.
     TransportOptions u;

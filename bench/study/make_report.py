@@ -236,7 +236,7 @@ tol_rows = []
 if tolerance:
     w("## `--tolerance` against `--samples`")
     w("")
-    w("`--tolerance E` runs a pilot on at most 256 texels or 128 vertices, predicts the count that brings 95 % of "
+    w("`--tolerance E` runs a pilot on at most 256 texels or 128 vertices (one in up to 8 of a small mesh's, at least 64), predicts the count that brings 95 % of "
       "the items within E, and runs the product once with it (prtbake/tolerance.h); vertices that nothing can "
       "occlude take the closed form. Each row sets its wall time (pilot included) beside the "
       "uniform runs `--samples N` (N every power of two, the default sampler): the smallest N whose maximum "

@@ -22,9 +22,9 @@ double quantile(std::vector<double> v, double q) {
 
 }  // namespace
 
-std::vector<size_t> pilotSubset(size_t count, size_t most) {
+std::vector<size_t> pilotSubset(size_t count, size_t step) {
   std::vector<size_t> out;
-  const size_t step = std::max<size_t>(1, (count + most - 1) / most);
+  step = std::max<size_t>(step, 1);
   for (size_t i = step / 2; i < count; i += step) out.push_back(i);
   return out;
 }

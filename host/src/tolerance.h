@@ -19,8 +19,8 @@ using PilotEvaluate = std::function<std::vector<std::vector<double>>(const std::
 ToleranceReport runTolerancePilot(const PilotEvaluate& evaluate, size_t stride, double tolerance, int maxSamples,
                                   int granularity);
 
-// Indices of at most `most` of `count` items, spread evenly (all when few).
-std::vector<size_t> pilotSubset(size_t count, size_t most);
+// Indices of every step-th of `count` items, from the middle of the first step.
+std::vector<size_t> pilotSubset(size_t count, size_t step);
 
 // The report as a sidecar block.
 nlohmann::json toleranceJson(const ToleranceReport& report);

@@ -194,13 +194,17 @@ bool hasNormal(const detail::RaySetup& s, size_t v) {
   return s.frames[12 * v + 8] != 0 || s.frames[12 * v + 9] != 0 || s.frames[12 * v + 10] != 0;
 }
 
-// The count for one term under --tolerance: the pilot over (at most 128 of) the sampled
-// vertices of the whole mesh, `evaluate` giving their values at N samples.
+// The count for one term under --tolerance: the pilot over every k-th sampled vertex of the
+// whole mesh (prtbake/tolerance.h: at most 128, one in up to 8 of a small mesh's, at least
+// 64), `evaluate` giving their values at N samples.
 int toleranceCount(const std::vector<uint32_t>& sampled, size_t stride, double tolerance, const TransportOptions& o,
                    const std::function<std::vector<double>(const std::vector<uint32_t>&, int)>& evaluate,
                    TransportResult& r) {
   std::vector<uint32_t> pilot;
-  for (size_t i : detail::pilotSubset(sampled.size(), kTolerancePilotVertices)) pilot.push_back(sampled[i]);
+  const size_t v = sampled.size();
+  const size_t step = std::max((v + kTolerancePilotVertices - 1) / kTolerancePilotVertices,
+                               std::min(kTolerancePilotShare, v / kTolerancePilotMinVertices));
+  for (size_t i : detail::pilotSubset(v, step)) pilot.push_back(sampled[i]);
   auto each = [&](const std::vector<int>& counts) {
     std::vector<std::vector<double>> out;
     for (int n : counts) out.push_back(evaluate(pilot, n));

@@ -72,7 +72,8 @@ struct TransportOptions {
   // "--tolerance E" (0: off, `samples` is used): each term (the direct term, each bounce)
   // takes the sample count that brings 95 % of its vertices within its share of E, E/2^(k+1)
   // for term k of interreflected transport (E for the others), predicted from a pilot over
-  // at most 128 of the mesh's vertices (prtbake/tolerance.h) and capped at
+  // at most 128 of the mesh's sampled vertices, one in up to 8 of a small mesh's but at least
+  // 64 (prtbake/tolerance.h), and capped at
   // toleranceMaxSamples. Vertices that no triangle can occlude, and every vertex of
   // unshadowed transport, take the closed form (clampedCosineProjected) instead of samples;
   // their bounces are exactly zero. The pilot uses the whole mesh's vertices, so a vertex
