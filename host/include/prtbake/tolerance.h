@@ -50,6 +50,7 @@ constexpr size_t kTolerancePilotTexels = 256;
 constexpr size_t kTolerancePilotVertices = 128;
 constexpr size_t kTolerancePilotMinVertices = 64;
 constexpr size_t kTolerancePilotShare = 8;
+// The first pilot counts are kTolerancePilotStart and twice that.
 constexpr int kTolerancePilotStart = 32;
 
 // What "--tolerance" did for one product (or one term of transport: the direct term
