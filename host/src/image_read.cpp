@@ -104,7 +104,7 @@ std::string radianceDataProblem(const std::vector<unsigned char>& b) {
   if (!line(tok)) return "";  // no identifier line: stb reports it
   do {
     if (!line(tok)) return "";  // header never ends: stb reports it
-  } while (!tok.empty());
+  } while (!tok.empty() && tok[0] != '\0');  // stb's header also ends at a line that starts with a NUL
   if (!line(tok) || tok.compare(0, 3, "-Y ") != 0) return "";
   char* end = nullptr;
   const long height = std::strtol(tok.c_str() + 3, &end, 10);
