@@ -178,30 +178,22 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
 #else
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
 #endif
-    for (int s0 = 0; s0 < sampleCount; s0 += BVH_PACKET * BVH_GROUPS) {
-      floatP dxs[BVH_GROUPS], dys[BVH_GROUPS], dzs[BVH_GROUPS];
-      intP lives[BVH_GROUPS];
-      for (int g = 0; g < BVH_GROUPS; ++g) {
-        const int s = min(s0 + g * BVH_PACKET, paddedCount - BVH_PACKET);
-        const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
-        const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
-        const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
-        dxs[g] = t.x * lx + b.x * ly + n.x * lz;
-        dys[g] = t.y * lx + b.y * ly + n.y * lz;
-        dzs[g] = t.z * lx + b.z * ly + n.z * lz;
-        lives[g] = (lane + (s0 + g * BVH_PACKET)) < sampleCount;
-      }
+    for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
+      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
+      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
+      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
+      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
+      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      intP live = (lane + s) < sampleCount;
 #if VISIBILITY
-      if (trace) bvh_packets_occluded(nodes, tris, o, dxs, dys, dzs, tMax, lives);
+      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
 #endif
-      for (int g = 0; g < BVH_GROUPS; ++g) {
-        const intP live = lives[g];
-        seen -= live;  // live lanes are −1
-        floatP y[SH_COUNT];
-        sh_eval(SH_ORDER, dxs[g], dys[g], dzs[g], y);
-        UNROLL
-        for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
-      }
+      seen -= live;  // live lanes are −1
+      floatP y[SH_COUNT];
+      sh_eval(SH_ORDER, dx, dy, dz, y);
+      UNROLL
+      for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
     }
   }
   // Fixed-order horizontal sums: deterministic.
