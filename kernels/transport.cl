@@ -153,6 +153,16 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
 
 #include "bvh_packet.clh"
 
+// dx, dy, dz: the world directions of samples s … s + BVH_PACKET − 1 (dirsSoA, in the
+// vertex's frame t, b, n).
+#define PK_WORLD_DIRS(s)                                                      \
+  const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + (s));               \
+  const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + (s)); \
+  const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + (s)); \
+  const floatP dx = t.x * lx + b.x * ly + n.x * lz;                            \
+  const floatP dy = t.y * lx + b.y * ly + n.y * lz;                            \
+  const floatP dz = t.z * lx + b.z * ly + n.z * lz
+
 // Packet form of transport_direct: the N samples of a vertex go through the BVH
 // BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
 // dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).
@@ -179,12 +189,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
 #endif
     for (int s = 0; s < sampleCount; s += BVH_PACKET) {
-      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
-      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
-      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
-      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
-      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
-      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      PK_WORLD_DIRS(s);
       intP live = (lane + s) < sampleCount;
 #if VISIBILITY
       if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
@@ -218,12 +223,7 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
   const float3 o = origins[vi].xyz;
   for (int s = 0; s < sampleCount; s += BVH_PACKET) {
-    const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
-    const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
-    const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
-    const floatP dx = t.x * lx + b.x * ly + n.x * lz;
-    const floatP dy = t.y * lx + b.y * ly + n.y * lz;
-    const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+    PK_WORLD_DIRS(s);
     const intP blocked = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, (intP)(-1));
     for (int j = 0; j < BVH_PACKET && s + j < sampleCount; ++j)
       out[(size_t)vi * sampleCount + s + j] = ((int*)&blocked)[j] ? 0 : 1;
@@ -253,12 +253,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
 #endif
     for (int s = 0; s < sampleCount; s += BVH_PACKET) {
-      const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + s);
-      const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + s);
-      const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + s);
-      const floatP dx = t.x * lx + b.x * ly + n.x * lz;
-      const floatP dy = t.y * lx + b.y * ly + n.y * lz;
-      const floatP dz = t.z * lx + b.z * ly + n.z * lz;
+      PK_WORLD_DIRS(s);
       const intP live = (lane + s) < sampleCount;
       intP hitTri;
       floatP hitU, hitV;
