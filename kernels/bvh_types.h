@@ -19,18 +19,17 @@ typedef struct {
   int count;
 } BvhNode;
 
-// One node of the wide BVH the packet kernels traverse (BVH_WIDTH = 8 children, 256
-// bytes), collapsed from the binary one (host/src/bvh.cpp): child slot i holds its box in
-// lane i of the six float8 (min x, min y, min z, max x, max y, max z) and
+// One node of the 4-wide BVH the packet kernels traverse (128 bytes), collapsed from
+// the binary one (host/src/bvh.cpp): child slot i holds its box in lane i of the six
+// float4 (min x, min y, min z, max x, max y, max z) and
 //   count[i] = 0:  an inner node, child[i] its index in the wide array;
 //   count[i] > 0:  a leaf of count[i] triangles starting at child[i] (leaf order);
 //   count[i] < 0:  an empty slot, whose box (min = +1e30, max = −1e30) no ray enters.
-#define BVH_WIDTH 8
 typedef struct {
-  float minX[BVH_WIDTH], minY[BVH_WIDTH], minZ[BVH_WIDTH], maxX[BVH_WIDTH], maxY[BVH_WIDTH], maxZ[BVH_WIDTH];
-  int child[BVH_WIDTH];
-  int count[BVH_WIDTH];
-} BvhWideNode;
+  float minX[4], minY[4], minZ[4], maxX[4], maxY[4], maxZ[4];
+  int child[4];
+  int count[4];
+} Bvh4Node;
 
 // Triangles in leaf order, for the Möller–Trumbore test: three float4 per
 // triangle, (v0, id), (e1 = v1 - v0, 0), (e2 = v2 - v0, 0), where `id` is the

@@ -61,7 +61,7 @@ inline float glossy_hsum(float16 a) {
 // out:      V × GRAM_COUNT, the lower triangle of G, row by row
 __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float4* origins,
                           __global const float4* frames, __global const float* dirsSoA,
-                          __global const BvhWideNode* nodes, __global const float4* tris, float tMax,
+                          __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                           __global float* out, int paddedCount) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
@@ -106,7 +106,7 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
 // out:     V × OUT_COUNT × IN_COUNT, Σ_s w_s Y_i(ω_s) ρ_c(q_s) T_j(q_s)
 __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const float4* origins,
                             __global const float4* frames, __global const float* dirsSoA,
-                            __global const BvhWideNode* nodes, __global const float4* tris, float tMax,
+                            __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                             __global const int4* indices, __global const float4* albedo,
                             __global const float* diffuse, int diffuseChannels, int channel,
                             __global float* out, int paddedCount) {

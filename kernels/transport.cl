@@ -169,7 +169,7 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
 // Other arguments as transport_direct; outputs identical up to float summation order.
 __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                       __global const float4* frames, __global const float* dirsSoA,
-                                      __global const BvhWideNode* nodes, __global const float4* tris, float tMax,
+                                      __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                                       __global float* coeffs, __global float* visible, int paddedCount) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
@@ -215,7 +215,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
 // Packet form of transport_visibility (the production visibility, for the tests).
 __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                           __global const float4* frames, __global const float* dirsSoA,
-                                          __global const BvhWideNode* nodes, __global const float4* tris,
+                                          __global const Bvh4Node* nodes, __global const float4* tris,
                                           float tMax, __global uchar* out, int paddedCount) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
@@ -235,7 +235,7 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
 // with dirsSoA and paddedCount as in transport_direct_packet.
 __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                       __global const float4* frames, __global const float* dirsSoA,
-                                      __global const BvhWideNode* nodes, __global const float4* tris, float tMax,
+                                      __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                                       __global const int4* indices, __global const float4* albedo,
                                       __global const float* prev, __global float* next, int paddedCount) {
   const int vi = get_global_id(0);

@@ -17,9 +17,8 @@ static_assert(sizeof(Bvh::Node) == sizeof(BvhNode), "Bvh::Node mirrors BvhNode")
 static_assert(offsetof(Bvh::Node, offset) == offsetof(BvhNode, offset), "Bvh::Node mirrors BvhNode");
 static_assert(offsetof(Bvh::Node, count) == offsetof(BvhNode, count), "Bvh::Node mirrors BvhNode");
 static_assert(BVH_TRI_FLOAT4S == 3, "packed triangles are three float4");
-static_assert(BVH_WIDTH == kBvhWidth, "the wide tree's width on the host and the device");
-static_assert(sizeof(BvhWideNode) == 32 * kBvhWidth && sizeof(Bvh::WideNode) == sizeof(BvhWideNode), "Bvh::WideNode mirrors BvhWideNode");
-static_assert(offsetof(Bvh::WideNode, child) == offsetof(BvhWideNode, child), "Bvh::WideNode mirrors BvhWideNode");
+static_assert(sizeof(Bvh4Node) == 128 && sizeof(Bvh::WideNode) == sizeof(Bvh4Node), "Bvh::WideNode mirrors Bvh4Node");
+static_assert(offsetof(Bvh::WideNode, child) == offsetof(Bvh4Node, child), "Bvh::WideNode mirrors Bvh4Node");
 
 namespace {
 
@@ -137,7 +136,7 @@ int collapse(const std::vector<Bvh::Node>& nodes, int index, std::vector<Bvh::Wi
     return dx * dy + dy * dz + dz * dx;
   };
   std::vector<int> slots = {index + 1, nodes[size_t(index)].offset};
-  while (slots.size() < size_t(kBvhWidth)) {
+  while (slots.size() < 4) {
     int best = -1;
     for (size_t k = 0; k < slots.size(); ++k)
       if (nodes[size_t(slots[k])].count <= 0 && (best < 0 || area(slots[k]) > area(slots[size_t(best)]))) best = int(k);
@@ -148,8 +147,13 @@ int collapse(const std::vector<Bvh::Node>& nodes, int index, std::vector<Bvh::Wi
   }
   const int at = int(wide.size());
   wide.emplace_back();
-  Bvh::WideNode w = Bvh::WideNode::empty();
-  for (int k = 0; k < int(slots.size()); ++k) {
+  Bvh::WideNode w{};
+  for (int k = 0; k < 4; ++k) {
+    if (k >= int(slots.size())) {
+      for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
+      w.child[k] = 0, w.count[k] = -1;
+      continue;
+    }
     const Bvh::Node& n = nodes[size_t(slots[size_t(k)])];
     for (int c = 0; c < 3; ++c) w.bmin[c][k] = n.bmin[c], w.bmax[c][k] = n.bmax[c];
     if (n.count > 0) {
@@ -163,15 +167,6 @@ int collapse(const std::vector<Bvh::Node>& nodes, int index, std::vector<Bvh::Wi
 }
 
 }  // namespace
-
-Bvh::WideNode Bvh::WideNode::empty() {
-  WideNode w{};
-  for (int k = 0; k < kBvhWidth; ++k) {
-    for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
-    w.child[k] = 0, w.count[k] = -1;
-  }
-  return w;
-}
 
 Bvh buildBvh(const Mesh& mesh) {
   Bvh bvh;
@@ -203,7 +198,11 @@ Bvh buildBvh(const Mesh& mesh) {
   bvh.depth = b.depth;
   // The wide tree; a root that is a leaf becomes one wide node with that leaf in slot 0.
   if (bvh.nodes[0].count > 0) {
-    Bvh::WideNode w = Bvh::WideNode::empty();
+    Bvh::WideNode w{};
+    for (int k = 0; k < 4; ++k) {
+      for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
+      w.child[k] = 0, w.count[k] = -1;
+    }
     for (int c = 0; c < 3; ++c) w.bmin[c][0] = bvh.nodes[0].bmin[c], w.bmax[c][0] = bvh.nodes[0].bmax[c];
     w.child[0] = bvh.nodes[0].offset, w.count[0] = bvh.nodes[0].count;
     bvh.wide.push_back(w);

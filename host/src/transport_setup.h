@@ -36,7 +36,7 @@ std::vector<float> directionChunk(int samples, int first, int count, uint64_t se
 // Origins and frames of every vertex; with `withDirections`, the whole direction set of
 // options.samples too (the CPU reference reads it; the device takes it in chunks).
 RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options, bool withDirections = true);
-// The BVH's nodes on the device: the wide tree for the packet kernels (`wide`), else
+// The BVH's nodes on the device: the 4-wide tree for the packet kernels (`wide`), else
 // the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
 // no ray enters.
 cl::Buffer uploadBvhNodes(Runtime& rt, const Bvh& bvh, bool wide);

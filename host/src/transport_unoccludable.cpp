@@ -63,7 +63,12 @@ std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const
 cl::Buffer uploadBvhNodes(Runtime& rt, const Bvh& bvh, bool wide) {
   if (wide) {
     if (!bvh.wide.empty()) return rt.upload(bvh.wide);
-    return rt.upload(std::vector<Bvh::WideNode>{Bvh::WideNode::empty()});
+    Bvh::WideNode none{};
+    for (int k = 0; k < 4; ++k) {
+      for (int c = 0; c < 3; ++c) none.bmin[c][k] = 1e30f, none.bmax[c][k] = -1e30f;
+      none.count[k] = -1;
+    }
+    return rt.upload(std::vector<Bvh::WideNode>{none});
   }
   if (!bvh.nodes.empty()) return rt.upload(bvh.nodes);
   return rt.upload(std::vector<Bvh::Node>{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}});

@@ -17,7 +17,6 @@ namespace prtbake {
 
 constexpr int kBvhBins = 16;
 constexpr int kBvhMaxLeaf = 4;
-constexpr int kBvhWidth = 8;     // children per node of the wide tree
 constexpr int kBvhMaxDepth = 60;  // the kernels' traversal stack holds 64 entries
 
 struct Bvh {
@@ -28,13 +27,12 @@ struct Bvh {
     int32_t count;   // > 0: triangles in the leaf; inner node: −(1 + split axis)
   };
   std::vector<Node> nodes;           // nodes[0] is the root
-  // The same tree with kBvhWidth children per node (kernels/bvh_types.h, BvhWideNode):
-  // every inner node takes its children's children until it has kBvhWidth, expanding the
-  // largest child box first. wide[0] is the root (empty when `nodes` is).
+  // The same tree with four children per node (kernels/bvh_types.h, Bvh4Node): every
+  // inner node takes its children's children until it has four, expanding the largest
+  // child box first. wide[0] is the root (empty when `nodes` is).
   struct WideNode {
-    float bmin[3][kBvhWidth], bmax[3][kBvhWidth];  // [axis][child slot]
-    int32_t child[kBvhWidth], count[kBvhWidth];
-    static WideNode empty();  // every slot empty (count −1, a box no ray enters)
+    float bmin[3][4], bmax[3][4];  // [axis][child slot]
+    int32_t child[4], count[4];
   };
   std::vector<WideNode> wide;
   std::vector<uint32_t> triangles;   // mesh triangle index of each leaf slot
