@@ -72,6 +72,10 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
   if (dot(n, n) > 0.0f) {
     const float3 o = origins[vi].xyz;
     const bool trace = origins[vi].w == 0.0f;
+#if VISIBILITY
+    PkFrontier front;
+    if (trace) pk_frontier(nodes, o, n, tMax, &front);
+#endif
     const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     for (int s = 0; s < sampleCount; s += 16) {
       const float16 lx = vload16(0, dirsSoA + s);
@@ -83,7 +87,7 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
       const float16 dz = t.z * lx + b.z * ly + n.z * lz;
       int16 live = (lane + s) < sampleCount;
 #if VISIBILITY
-      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
+      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
 #endif
       float16 y[SH_COUNT];
       sh_eval(SH_ORDER, dx, dy, dz, y);
@@ -121,6 +125,8 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
     const float3 o = origins[vi].xyz;
     const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     const int tc = diffuseChannels == 3 ? channel : 0;
+    PkFrontier front;
+    pk_frontier(nodes, o, n, tMax, &front);
     for (int s = 0; s < sampleCount; s += 16) {
       const float16 lx = vload16(0, dirsSoA + s);
       const float16 ly = vload16(0, dirsSoA + paddedCount + s);
@@ -132,7 +138,7 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
       const int16 live = (lane + s) < sampleCount;
       int16 hitTri;
       float16 hitU, hitV;
-      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &hitTri, &hitU, &hitV);
+      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);
       if (!pk_any(hitTri >= 0)) continue;
       // g_j = ρ_c(q) T_j(q) lane by lane (a gather), zero where the ray escaped.
       float16 g[IN_COUNT];

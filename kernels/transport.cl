@@ -182,6 +182,8 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
   if (dot(n, n) > 0.0f) {
     const float3 o = origins[vi].xyz;
     const bool trace = origins[vi].w == 0.0f;
+    PkFrontier front;
+    if (trace) pk_frontier(nodes, o, n, tMax, &front);
     intP lane;
 #if BVH_PACKET == 16
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -192,7 +194,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       PK_WORLD_DIRS(s);
       intP live = (lane + s) < sampleCount;
 #if VISIBILITY
-      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live);
+      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
 #endif
       seen -= live;  // live lanes are −1
       floatP y[SH_COUNT];
@@ -222,9 +224,11 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
   __global const float4* frame = frames + (size_t)vi * 3;
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
   const float3 o = origins[vi].xyz;
+  PkFrontier front;
+  pk_frontier(nodes, o, n, tMax, &front);
   for (int s = 0; s < sampleCount; s += BVH_PACKET) {
     PK_WORLD_DIRS(s);
-    const intP blocked = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, (intP)(-1));
+    const intP blocked = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, (intP)(-1), &front);
     for (int j = 0; j < BVH_PACKET && s + j < sampleCount; ++j)
       out[(size_t)vi * sampleCount + s + j] = ((int*)&blocked)[j] ? 0 : 1;
   }
@@ -246,6 +250,8 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
   if (dot(n, n) > 0.0f) {
     const float3 o = origins[vi].xyz;
+    PkFrontier front;
+    pk_frontier(nodes, o, n, tMax, &front);
     intP lane;
 #if BVH_PACKET == 16
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -257,7 +263,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
       const intP live = (lane + s) < sampleCount;
       intP hitTri;
       floatP hitU, hitV;
-      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &hitTri, &hitU, &hitV);
+      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);
       for (int j = 0; j < BVH_PACKET; ++j) {
         const int tri = ((int*)&hitTri)[j];
         if (tri < 0) continue;
