@@ -182,8 +182,10 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
   if (dot(n, n) > 0.0f) {
     const float3 o = origins[vi].xyz;
     const bool trace = origins[vi].w == 0.0f;
+#if VISIBILITY
     PkFrontier front;
     if (trace) pk_frontier(nodes, o, n, tMax, &front);
+#endif
     intP lane;
 #if BVH_PACKET == 16
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
