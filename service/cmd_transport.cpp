@@ -1,5 +1,6 @@
 // prtbake transport: per-vertex PRT transport of a mesh (see prtbake/transport.h).
 #include <cstdio>
+#include <future>
 #include <memory>
 #include <string>
 #include <utility>
@@ -55,13 +56,15 @@ int runTransport(const CommandLine& cl) {
                                                 input.substr(input.size() - 4) == ".glb")))
     throw UsageError("--gltf", "a glTF copy needs a glTF input (" + input + " is not .gltf/.glb)");
 
+  // The OpenCL device starts while the mesh loads.
+  auto device = std::async(std::launch::async, [&cl] { return std::make_unique<Runtime>(cl.device()); });
   Mesh mesh = loadMesh(input);
   status(cl, "transport: " + input + ": " + std::to_string(mesh.vertexCount()) + " vertices, " +
                  std::to_string(mesh.triangleCount()) + " triangles, " + transportModeName(o.mode) + ", order " +
                  std::to_string(o.order) + ", " +
                  (o.tolerance > 0 ? "tolerance " + cl.get("tolerance") : std::to_string(o.samples) + " samples"));
-  Runtime rt(cl.device());
-  const TransportResult r = computeTransport(rt, mesh, o);
+  const std::unique_ptr<Runtime> rt = device.get();
+  const TransportResult r = computeTransport(*rt, mesh, o);
   // Every output is produced, then written to its temp file, before any is renamed
   // into place: a failure (coloured transport for GAMES202, a full disk) leaves none.
   std::vector<std::pair<std::string, std::string>> outputs;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <thread>
+#include <utility>
 
 #include "bvh_types.h"
 
@@ -43,10 +45,14 @@ struct Prim {
   uint32_t tri;
 };
 
+// Ranges of at least this many triangles split at the root are built on two threads.
+constexpr size_t kParallelBuild = 4096;
+
 struct Builder {
   std::vector<Prim>& prims;
   std::vector<Bvh::Node>& nodes;
   int depth = 0;
+  int threads = 1;
 
   int build(size_t begin, size_t end, int level) {
     depth = std::max(depth, level);
@@ -116,8 +122,28 @@ struct Builder {
       mid = size_t(it - prims.begin());
       if (mid == begin || mid == end) mid = begin + count / 2;
     }
-    build(begin, mid, level + 1);
-    const int right = build(mid, end, level + 1);
+    int right;
+    if (level == 0 && count >= kParallelBuild && threads > 1) {
+      // The two halves on two threads, each into its own list, then appended in
+      // depth-first order with their inner nodes' right-child indices moved: the same
+      // tree as one thread builds.
+      std::vector<Bvh::Node> leftNodes, rightNodes;
+      Builder left{prims, leftNodes}, rightHalf{prims, rightNodes};
+      std::thread worker([&] { left.build(begin, mid, level + 1); });
+      rightHalf.build(mid, end, level + 1);
+      worker.join();
+      depth = std::max({depth, left.depth, rightHalf.depth});
+      const int leftAt = int(nodes.size());
+      right = leftAt + int(leftNodes.size());
+      for (const auto& [part, at] : {std::pair{&leftNodes, leftAt}, std::pair{&rightNodes, right}})
+        for (Bvh::Node n : *part) {
+          if (n.count <= 0) n.offset += at;
+          nodes.push_back(n);
+        }
+    } else {
+      build(begin, mid, level + 1);
+      right = build(mid, end, level + 1);
+    }
     Bvh::Node& n = nodes[index];
     for (int c = 0; c < 3; ++c) n.bmin[c] = bounds.lo[c], n.bmax[c] = bounds.hi[c];
     n.offset = right;
@@ -194,6 +220,7 @@ Bvh buildBvh(const Mesh& mesh) {
   if (prims.empty()) return bvh;
   bvh.nodes.reserve(2 * prims.size() / kBvhMaxLeaf + 2);
   Builder b{prims, bvh.nodes};
+  b.threads = int(std::max(1u, std::thread::hardware_concurrency()));
   b.build(0, prims.size(), 0);
   bvh.depth = b.depth;
   // The wide tree; a root that is a leaf becomes one wide node with that leaf in slot 0.

@@ -23,8 +23,10 @@
 
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
+#include "parallel.h"
 
 namespace prtbake {
+using detail::parallelFor;
 namespace {
 
 typedef float v8 __attribute__((vector_size(32)));
@@ -122,18 +124,6 @@ uint64_t splitmix64(uint64_t x) {
   x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
   x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
   return x ^ (x >> 31);
-}
-
-template <class F>
-void parallelFor(size_t n, int threads, F&& f) {
-  const size_t t = std::max<size_t>(1, std::min<size_t>(size_t(threads), (n + 255) / 256));
-  if (t == 1) {
-    f(size_t(0), n, 0);
-    return;
-  }
-  std::vector<std::thread> pool;
-  for (size_t i = 0; i < t; ++i) pool.emplace_back([&, i] { f(n * i / t, n * (i + 1) / t, int(i)); });
-  for (auto& th : pool) th.join();
 }
 
 struct Model {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <future>
 
 #include "kernel_options.h"
 #include "prtbake/bvh.h"
@@ -241,10 +242,16 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     r.totalSeconds = since(tStart);
     return r;
   }
+  const bool visibility = o.mode != TransportMode::Unshadowed;
+  // The direct term's program is built (or read from the caches) while the rays and the
+  // BVH are set up.
+  auto program = std::async(std::launch::async, [&rt, &o, visibility] {
+    rt.program("transport.cl", detail::transportOptions(o.order, visibility, 1, o.packetWidth));
+  });
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
   for (size_t v = first; v < first + count; ++v) r.verticesWithoutNormal += hasNormal(setup, v) ? 0 : 1;
-  const bool visibility = o.mode != TransportMode::Unshadowed;
   Tracer tracer(rt, mesh, o, setup, visibility, r);
+  program.get();
   const auto tKernel = Clock::now();
   std::vector<uint32_t> range(count);
   for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);

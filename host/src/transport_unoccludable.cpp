@@ -3,6 +3,7 @@
 
 #include "prtbake/bvh.h"
 #include "prtbake/transport.h"
+#include "parallel.h"
 #include "transport_setup.h"
 
 namespace prtbake {
@@ -13,50 +14,53 @@ namespace detail {
 // are the convex hulls of their corners, so it suffices that every corner satisfies
 // n·q ≤ n·p + h/2 (half the offset: margin for the float origin). A BVH node whose box
 // has max_{q ∈ box} n·q = Σ_c max(n_c bmin_c, n_c bmax_c) below that is skipped whole.
+// Vertices are independent: blocks of them on the host's threads.
 std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const RaySetup& setup) {
   const size_t nv = mesh.vertexCount();
   std::vector<uint8_t> out(nv, 0);
   const auto& P = mesh.positions;
-  std::vector<int> stack;
-  stack.reserve(128);
-  for (size_t v = 0; v < nv; ++v) {
-    const float* f = &setup.frames[12 * v + 8];
-    const double n[3] = {f[0], f[1], f[2]};
-    const double nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-    if (!(nn > 0)) continue;  // no normal: zero transport, nothing traced anyway
-    double np = 0, h = 0;
-    for (int c = 0; c < 3; ++c) {
-      np += n[c] * P[3 * v + c];
-      h += n[c] * (double(setup.origins[4 * v + c]) - P[3 * v + c]);
-    }
-    if (!(h > 0)) continue;
-    const double thr = np + 0.5 * h;
-    bool blocked = false;
-    if (!bvh.nodes.empty()) stack.assign(1, 0);
-    else stack.clear();
-    while (!stack.empty() && !blocked) {
-      const Bvh::Node& node = bvh.nodes[size_t(stack.back())];
-      const int idx = stack.back();
-      stack.pop_back();
-      double top = 0;
-      for (int c = 0; c < 3; ++c) top += std::max(n[c] * node.bmin[c], n[c] * node.bmax[c]);
-      if (top <= thr) continue;
-      if (node.count > 0) {
-        for (int i = 0; i < node.count && !blocked; ++i) {
-          const uint32_t t = bvh.triangles[size_t(node.offset) + i];
-          for (int k = 0; k < 3 && !blocked; ++k) {
-            const uint32_t q = mesh.indices[3 * size_t(t) + k];
-            const double d = n[0] * P[3 * q] + n[1] * P[3 * q + 1] + n[2] * P[3 * q + 2];
-            if (d > thr) blocked = true;
-          }
-        }
-      } else {
-        stack.push_back(node.offset);
-        stack.push_back(idx + 1);
+  parallelFor(nv, hostThreads(), [&](size_t begin, size_t end, int) {
+    std::vector<int> stack;
+    stack.reserve(128);
+    for (size_t v = begin; v < end; ++v) {
+      const float* f = &setup.frames[12 * v + 8];
+      const double n[3] = {f[0], f[1], f[2]};
+      const double nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+      if (!(nn > 0)) continue;  // no normal: zero transport, nothing traced anyway
+      double np = 0, h = 0;
+      for (int c = 0; c < 3; ++c) {
+        np += n[c] * P[3 * v + c];
+        h += n[c] * (double(setup.origins[4 * v + c]) - P[3 * v + c]);
       }
+      if (!(h > 0)) continue;
+      const double thr = np + 0.5 * h;
+      bool blocked = false;
+      if (!bvh.nodes.empty()) stack.assign(1, 0);
+      else stack.clear();
+      while (!stack.empty() && !blocked) {
+        const Bvh::Node& node = bvh.nodes[size_t(stack.back())];
+        const int idx = stack.back();
+        stack.pop_back();
+        double top = 0;
+        for (int c = 0; c < 3; ++c) top += std::max(n[c] * node.bmin[c], n[c] * node.bmax[c]);
+        if (top <= thr) continue;
+        if (node.count > 0) {
+          for (int i = 0; i < node.count && !blocked; ++i) {
+            const uint32_t t = bvh.triangles[size_t(node.offset) + i];
+            for (int k = 0; k < 3 && !blocked; ++k) {
+              const uint32_t q = mesh.indices[3 * size_t(t) + k];
+              const double d = n[0] * P[3 * q] + n[1] * P[3 * q + 1] + n[2] * P[3 * q + 2];
+              if (d > thr) blocked = true;
+            }
+          }
+        } else {
+          stack.push_back(node.offset);
+          stack.push_back(idx + 1);
+        }
+      }
+      out[v] = blocked ? 0 : 1;
     }
-    out[v] = blocked ? 0 : 1;
-  }
+  });
   return out;
 }
 
