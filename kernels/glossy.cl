@@ -74,7 +74,7 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
     const bool trace = origins[vi].w == 0.0f;
 #if VISIBILITY
     PkFrontier front;
-    if (trace) pk_frontier(nodes, o, n, tMax, &front);
+    if (trace) pk_frontier(nodes, tris, o, n, tMax, &front);
 #endif
     const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     for (int s = 0; s < sampleCount; s += 16) {
@@ -126,7 +126,7 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
     const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     const int tc = diffuseChannels == 3 ? channel : 0;
     PkFrontier front;
-    pk_frontier(nodes, o, n, tMax, &front);
+    pk_frontier(nodes, tris, o, n, tMax, &front);
     for (int s = 0; s < sampleCount; s += 16) {
       const float16 lx = vload16(0, dirsSoA + s);
       const float16 ly = vload16(0, dirsSoA + paddedCount + s);

@@ -184,7 +184,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
     const bool trace = origins[vi].w == 0.0f;
 #if VISIBILITY
     PkFrontier front;
-    if (trace) pk_frontier(nodes, o, n, tMax, &front);
+    if (trace) pk_frontier(nodes, tris, o, n, tMax, &front);
 #endif
     intP lane;
 #if BVH_PACKET == 16
@@ -227,7 +227,7 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
   const float3 o = origins[vi].xyz;
   PkFrontier front;
-  pk_frontier(nodes, o, n, tMax, &front);
+  pk_frontier(nodes, tris, o, n, tMax, &front);
   for (int s = 0; s < sampleCount; s += BVH_PACKET) {
     PK_WORLD_DIRS(s);
     const intP blocked = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, (intP)(-1), &front);
@@ -253,7 +253,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
   if (dot(n, n) > 0.0f) {
     const float3 o = origins[vi].xyz;
     PkFrontier front;
-    pk_frontier(nodes, o, n, tMax, &front);
+    pk_frontier(nodes, tris, o, n, tMax, &front);
     intP lane;
 #if BVH_PACKET == 16
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
