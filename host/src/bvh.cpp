@@ -5,10 +5,11 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
-#include <thread>
+#include <future>
 #include <utility>
 
 #include "bvh_types.h"
+#include "parallel.h"
 
 #include <vector>
 
@@ -129,9 +130,9 @@ struct Builder {
       // tree as one thread builds.
       std::vector<Bvh::Node> leftNodes, rightNodes;
       Builder left{prims, leftNodes}, rightHalf{prims, rightNodes};
-      std::thread worker([&] { left.build(begin, mid, level + 1); });
-      rightHalf.build(mid, end, level + 1);
-      worker.join();
+      auto leftDone = std::async(std::launch::async, [&] { left.build(begin, mid, level + 1); });
+      rightHalf.build(mid, end, level + 1);  // should it throw, leftDone's destructor waits
+      leftDone.get();
       depth = std::max({depth, left.depth, rightHalf.depth});
       const int leftAt = int(nodes.size());
       right = leftAt + int(leftNodes.size());
@@ -220,7 +221,7 @@ Bvh buildBvh(const Mesh& mesh) {
   if (prims.empty()) return bvh;
   bvh.nodes.reserve(2 * prims.size() / kBvhMaxLeaf + 2);
   Builder b{prims, bvh.nodes};
-  b.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  b.threads = detail::hostThreads();
   b.build(0, prims.size(), 0);
   bvh.depth = b.depth;
   // The wide tree; a root that is a leaf becomes one wide node with that leaf in slot 0.
