@@ -104,7 +104,8 @@ __kernel void transport_visibility(int vertexCount, int sampleCount, __global co
   }
 }
 
-// One interreflection bounce, one work-item per vertex.
+// One interreflection bounce, one work-item per vertex (none for a vertex that no
+// triangle can reach: origin w = 1, as in transport_direct).
 // indices: T × (i0, i1, i2, 0) vertex indices of every mesh triangle
 // albedo:  V × (r, g, b, 0) linear albedo (CHANNELS = 1 reads r)
 // prev:    V × CHANNELS × SH_COUNT, the previous bounce T^(k)
@@ -119,7 +120,7 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
   __global const float4* frame = frames + (size_t)vi * 3;
   float acc[CHANNELS * SH_COUNT];
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
-  if (dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
+  if (dot(frame[2].xyz, frame[2].xyz) > 0.0f && origins[vi].w == 0.0f) {  // w = 1: nothing in reach
     const float3 o = origins[vi].xyz;
     for (int s = 0; s < sampleCount; ++s) {
       const float3 d = sampling_to_world(frame, dirs[s]);
@@ -163,14 +164,27 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
   const floatP dy = t.y * lx + b.y * ly + n.y * lz;                            \
   const floatP dz = t.z * lx + b.z * ly + n.z * lz
 
+// The lanes of a packet whose bit is set in `bits` (−1), the others 0.
+inline intP pk_lanes(int bits) {
+#if BVH_PACKET == 16
+  return ((intP)(bits) & (intP)(1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384, 32768)) != 0;
+#else
+  return ((intP)(bits) & (intP)(1, 2, 4, 8, 16, 32, 64, 128)) != 0;
+#endif
+}
+
 // Packet form of transport_direct: the N samples of a vertex go through the BVH
 // BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
 // dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).
+// blocked: when maskWords > 0, V × maskWords (= paddedCount / BVH_PACKET) words, one per
+//          packet, with bit j set where the packet's ray j is blocked (for the bounces,
+//          which trace the same rays: transport_bounce_packet).
 // Other arguments as transport_direct; outputs identical up to float summation order.
 __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                       __global const float4* frames, __global const float* dirsSoA,
                                       __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
-                                      __global float* coeffs, __global float* visible, int paddedCount) {
+                                      __global float* coeffs, __global float* visible, int paddedCount,
+                                      __global ushort* blocked, int maskWords) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
@@ -196,7 +210,13 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       PK_WORLD_DIRS(s);
       intP live = (lane + s) < sampleCount;
 #if VISIBILITY
-      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
+      if (trace) {
+        const intP hit = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
+        live &= ~hit;
+        if (maskWords > 0) blocked[(size_t)vi * maskWords + s / BVH_PACKET] = (ushort)pk_bits(hit);
+      } else if (maskWords > 0) {
+        blocked[(size_t)vi * maskWords + s / BVH_PACKET] = 0;
+      }
 #endif
       seen -= live;  // live lanes are −1
       floatP y[SH_COUNT];
@@ -238,19 +258,23 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
 
 // Packet form of transport_bounce: closest hits BVH_PACKET at a time, then the
 // gather of ρ(q) T^(k)(q) lane by lane (random access). Arguments as transport_bounce,
-// with dirsSoA and paddedCount as in transport_direct_packet.
+// with dirsSoA and paddedCount as in transport_direct_packet. A vertex that no triangle
+// can reach (origin w = 1) sees nothing. blocked, maskWords: when maskWords > 0, the
+// direct term's blocked rays (transport_direct_packet) of these same rays: the others
+// hit nothing and are not traced.
 __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                       __global const float4* frames, __global const float* dirsSoA,
                                       __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                                       __global const int4* indices, __global const float4* albedo,
-                                      __global const float* prev, __global float* next, int paddedCount) {
+                                      __global const float* prev, __global float* next, int paddedCount,
+                                      __global const ushort* blocked, int maskWords) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
   float acc[CHANNELS * SH_COUNT];
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
-  if (dot(n, n) > 0.0f) {
+  if (dot(n, n) > 0.0f && origins[vi].w == 0.0f) {
     const float3 o = origins[vi].xyz;
     PkFrontier front;
     pk_frontier(nodes, tris, o, n, tMax, &front);
@@ -261,8 +285,12 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
 #endif
     for (int s = 0; s < sampleCount; s += BVH_PACKET) {
+      intP live = (lane + s) < sampleCount;
+      if (maskWords > 0) {
+        live &= pk_lanes(blocked[(size_t)vi * maskWords + s / BVH_PACKET]);
+        if (!pk_any(live)) continue;
+      }
       PK_WORLD_DIRS(s);
-      const intP live = (lane + s) < sampleCount;
       intP hitTri;
       floatP hitU, hitV;
       bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);

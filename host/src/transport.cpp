@@ -25,6 +25,10 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // scalar; 16 keeps the groups numerous enough to balance over the cores.
 constexpr size_t kLocalSize = 16;
 
+// The most device memory the direct term's blocked-ray masks may take (a bit per ray:
+// 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
+constexpr double kMaskBytes = 256.0 * 1024 * 1024;
+
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
 // The scene on the device and the kernels over lists of vertices. Each call takes
@@ -35,6 +39,12 @@ class Tracer {
   Tracer(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup, bool visibility,
          TransportResult& r)
       : rt_(rt), mesh_(mesh), o_(o), setup_(setup), visibility_(visibility), nc_(o.order * o.order) {
+    // Without --tolerance the bounces trace the direct term's rays again (same count, seed,
+    // origins and frames): a ray that nothing blocked there hits nothing in a bounce.
+    const double packets = std::ceil(o.samples / double(std::max(o.packetWidth, 1)));
+    keepBlocked_ = visibility && o.mode == TransportMode::Interreflected && o.tolerance <= 0 && o.packetWidth > 0 &&
+                   double(mesh.vertexCount()) * packets * 2 <= kMaskBytes;
+    noMask_ = rt.upload(std::vector<float>(1, 0.0f));
     if (visibility) {
       const auto t0 = Clock::now();
       const Bvh bvh = buildBvh(mesh);
@@ -55,18 +65,21 @@ class Tracer {
 
   // T^(0) of `vertices` (order² each) and their unoccluded fractions. Unoccludable
   // vertices are marked in their origin's w: the kernel traces no rays for them.
+  // With keepBlocked_, the whole mesh at o.samples keeps its blocked-ray masks for bounce().
   std::vector<double> direct(const std::vector<uint32_t>& vertices, int samples, std::vector<double>* visible,
                              TransportResult& r) {
     const int nv = int(vertices.size());
     std::vector<double> sums(size_t(nv) * nc_, 0.0), seen(size_t(nv), 0.0);
+    blocked_.clear();
     if (nv > 0) {
       uploadVertices(vertices);
       cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4), vis(rt_.context(), CL_MEM_WRITE_ONLY, seen.size() * 4);
       cl::Kernel k = kernel("transport_direct", "transport_direct_packet", 1);
       k.setArg(8, out);
       k.setArg(9, vis);
+      const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size()), partSeen(seen.size());
-      forEachChunk(k, samples, nv, 10, [&] {
+      forEachChunk(k, samples, nv, 10, keep ? MaskUse::Write : MaskUse::None, [&] {
         // One wait for both reads (the queue runs in order).
         rt_.queue().enqueueReadBuffer(out, CL_FALSE, 0, part.size() * 4, part.data());
         rt_.queue().enqueueReadBuffer(vis, CL_TRUE, 0, partSeen.size() * 4, partSeen.data());
@@ -74,7 +87,12 @@ class Tracer {
         for (size_t i = 0; i < seen.size(); ++i) seen[i] += partSeen[i];
       });
       size_t traced = 0;
-      for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
+      blockedRays_ = 0;
+      for (int i = 0; i < nv; ++i)
+        if (!unoccludable_[vertices[size_t(i)]]) {
+          ++traced;
+          blockedRays_ += uint64_t(samples) - uint64_t(std::llround(seen[size_t(i)]));
+        }
       if (visibility_) r.rays += uint64_t(traced) * uint64_t(samples);
       r.totalSamples += uint64_t(nv) * uint64_t(samples);
     }
@@ -106,12 +124,15 @@ class Tracer {
       k.setArg(9, albedo_);
       k.setArg(10, prev);
       k.setArg(11, out);
+      const bool reuse = !blocked_.empty() && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size());
-      forEachChunk(k, samples, nv, 12, [&] {
+      forEachChunk(k, samples, nv, 12, reuse ? MaskUse::Read : MaskUse::None, [&] {
         rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
         for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
       });
-      r.rays += uint64_t(nv) * uint64_t(samples);
+      size_t traced = 0;  // the kernel skips vertices that nothing can reach
+      for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
+      r.rays += reuse ? blockedRays_ : uint64_t(traced) * uint64_t(samples);
       r.totalSamples += uint64_t(nv) * uint64_t(samples);
     }
     for (double& x : sums) x /= samples;
@@ -144,12 +165,14 @@ class Tracer {
   }
 
   // Launches `k` over nv vertices for each chunk of the direction set, then `collect`.
-  // paddedArg: the packet kernels' argument index of the padded direction count.
+  // paddedArg: the packet kernels' argument index of the padded direction count, followed
+  // by the blocked-ray mask and its words per vertex (written, read, or none: 0 words).
+  enum class MaskUse { None, Write, Read };
   template <class Collect>
-  void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, Collect&& collect) {
+  void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, MaskUse mask, Collect&& collect) {
     const bool packet = o_.packetWidth > 0;
     k.setArg(0, nv);
-    for (int first = 0; first < samples; first += detail::kTransportSampleChunk) {
+    for (int first = 0, chunk = 0; first < samples; first += detail::kTransportSampleChunk, ++chunk) {
       const int n = std::min(detail::kTransportSampleChunk, samples - first);
       std::vector<float> dirs = detail::directionChunk(samples, first, n, o_.seed, o_.sampler);
       int padded = 0;
@@ -157,7 +180,14 @@ class Tracer {
       const cl::Buffer d = rt_.upload(dirs);
       k.setArg(1, n);
       k.setArg(4, d);
-      if (packet) k.setArg(paddedArg, padded);
+      if (packet) {
+        const int words = padded / o_.packetWidth;
+        k.setArg(paddedArg, padded);
+        if (mask == MaskUse::Write)
+          blocked_.emplace_back(rt_.context(), CL_MEM_READ_WRITE, size_t(nv) * size_t(words) * 2);
+        k.setArg(paddedArg + 1, mask == MaskUse::None ? noMask_ : blocked_[size_t(chunk)]);
+        k.setArg(paddedArg + 2, mask == MaskUse::None ? 0 : words);
+      }
       rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
                                        cl::NDRange(kLocalSize));
       collect();
@@ -171,7 +201,10 @@ class Tracer {
   bool visibility_;
   int nc_;
   std::vector<uint8_t> unoccludable_;
-  cl::Buffer nodes_, tris_, origins_, frames_, indices_, albedo_;
+  cl::Buffer nodes_, tris_, origins_, frames_, indices_, albedo_, noMask_;
+  bool keepBlocked_ = false;
+  std::vector<cl::Buffer> blocked_;  // per chunk of directions: V × words ushort
+  uint64_t blockedRays_ = 0;         // the rays the last direct() found blocked
 };
 
 // The size of the requested vertex range; throws UsageError when it leaves the mesh
