@@ -256,18 +256,46 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
   }
 }
 
-// Packet form of transport_bounce: closest hits BVH_PACKET at a time, then the
-// gather of ρ(q) T^(k)(q) lane by lane (random access). Arguments as transport_bounce,
-// with dirsSoA and paddedCount as in transport_direct_packet. A vertex that no triangle
-// can reach (origin w = 1) sees nothing. blocked, maskWords: when maskWords > 0, the
-// direct term's blocked rays (transport_direct_packet) of these same rays: the others
-// hit nothing and are not traced.
+// Adds ρ(q) T^(k)(q) at the hit (tri, u, v) to acc (tri < 0: no hit). Barycentrics may
+// stray by BVH_EDGE_EPS outside the triangle: clamped and renormalised.
+inline void pk_gather(int tri, float u, float v, __global const int4* indices, __global const float4* albedo,
+                      __global const float* prev, float* acc) {
+  if (tri < 0) return;
+  u = fmax(u, 0.0f);
+  v = fmax(v, 0.0f);
+  float w = fmax(1.0f - u - v, 0.0f);
+  const float sum = u + v + w;
+  u /= sum, v /= sum, w /= sum;
+  const int4 idx = indices[tri];
+  const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
+  __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
+  __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
+  __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
+  for (int c = 0; c < CHANNELS; ++c) {
+    const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
+    for (int k = 0; k < SH_COUNT; ++k) {
+      const int m = c * SH_COUNT + k;
+      acc[m] += r * (w * t0[m] + u * t1[m] + v * t2[m]);
+    }
+  }
+}
+
+// Packet form of transport_bounce: closest hits BVH_PACKET at a time, then the gather
+// (pk_gather) lane by lane. Arguments as transport_bounce, with dirsSoA and paddedCount as
+// in transport_direct_packet. A vertex that no triangle can reach (origin w = 1) sees
+// nothing. blocked, maskWords: when maskWords > 0, the direct term's blocked rays
+// (transport_direct_packet) of these same rays: the others hit nothing and are not
+// traced. hits, hitStart, chunks, chunk: when chunks > 0, the hits of the traced rays
+// are also written (tri as int bits, u, v: 3 floats each), those of this vertex and
+// launch (of `chunks`) in lane order from hits + 3 · hitStart[vertex · chunks + chunk],
+// for transport_gather.
 __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                       __global const float4* frames, __global const float* dirsSoA,
                                       __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                                       __global const int4* indices, __global const float4* albedo,
                                       __global const float* prev, __global float* next, int paddedCount,
-                                      __global const ushort* blocked, int maskWords) {
+                                      __global const ushort* blocked, int maskWords, __global float* hits,
+                                      __global const int* hitStart, int chunks, int chunk) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
@@ -284,6 +312,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
 #else
     lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
 #endif
+    __global float* out = chunks > 0 ? hits + 3 * (size_t)hitStart[(size_t)vi * chunks + chunk] : hits;
     for (int s = 0; s < sampleCount; s += BVH_PACKET) {
       intP live = (lane + s) < sampleCount;
       if (maskWords > 0) {
@@ -295,28 +324,29 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
       floatP hitU, hitV;
       bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);
       for (int j = 0; j < BVH_PACKET; ++j) {
+        if (!((int*)&live)[j]) continue;
         const int tri = ((int*)&hitTri)[j];
-        if (tri < 0) continue;
-        float u = fmax(((float*)&hitU)[j], 0.0f);
-        float v = fmax(((float*)&hitV)[j], 0.0f);
-        float w = fmax(1.0f - u - v, 0.0f);
-        const float sum = u + v + w;
-        u /= sum, v /= sum, w /= sum;
-        const int4 idx = indices[tri];
-        const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
-        __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
-        __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
-        __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
-        for (int c = 0; c < CHANNELS; ++c) {
-          const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
-          for (int k = 0; k < SH_COUNT; ++k) {
-            const int m = c * SH_COUNT + k;
-            acc[m] += r * (w * t0[m] + u * t1[m] + v * t2[m]);
-          }
-        }
+        const float u = ((float*)&hitU)[j], v = ((float*)&hitV)[j];
+        if (chunks > 0) out[0] = as_float(tri), out[1] = u, out[2] = v, out += 3;
+        pk_gather(tri, u, v, indices, albedo, prev, acc);
       }
     }
   }
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
+}
+
+// A bounce from the hits transport_bounce_packet wrote for launch `chunk` (the same rays,
+// the same order, so the same sums): no tracing. Arguments as there.
+__kernel void transport_gather(int vertexCount, __global const float* hits, __global const int* hitStart, int chunks,
+                               int chunk, __global const int4* indices, __global const float4* albedo,
+                               __global const float* prev, __global float* next) {
+  const int vi = get_global_id(0);
+  if (vi >= vertexCount) return;
+  float acc[CHANNELS * SH_COUNT];
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
+  const int first = hitStart[(size_t)vi * chunks + chunk], last = hitStart[(size_t)vi * chunks + chunk + 1];
+  for (int h = first; h < last; ++h)
+    pk_gather(as_int(hits[3 * (size_t)h]), hits[3 * (size_t)h + 1], hits[3 * (size_t)h + 2], indices, albedo, prev, acc);
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
 }
 

@@ -28,6 +28,9 @@ constexpr size_t kLocalSize = 16;
 // The most device memory the direct term's blocked-ray masks may take (a bit per ray:
 // 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
 constexpr double kMaskBytes = 256.0 * 1024 * 1024;
+// The most the first bounce's hits may take (12 bytes per blocked ray: 44 million); beyond
+// it every bounce traces its rays.
+constexpr double kHitBytes = 512.0 * 1024 * 1024;
 
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
@@ -79,21 +82,36 @@ class Tracer {
       k.setArg(9, vis);
       const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size()), partSeen(seen.size());
-      forEachChunk(k, samples, nv, 10, keep ? MaskUse::Write : MaskUse::None, [&] {
+      std::vector<uint32_t> chunkBlocked;  // chunk-major: the blocked rays of each vertex
+      forEachChunk(k, samples, nv, 10, keep ? MaskUse::Write : MaskUse::None, [](int) {}, [&](int, int n) {
         // One wait for both reads (the queue runs in order).
         rt_.queue().enqueueReadBuffer(out, CL_FALSE, 0, part.size() * 4, part.data());
         rt_.queue().enqueueReadBuffer(vis, CL_TRUE, 0, partSeen.size() * 4, partSeen.data());
         for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
         for (size_t i = 0; i < seen.size(); ++i) seen[i] += partSeen[i];
+        for (int i = 0; i < nv; ++i)
+          chunkBlocked.push_back(traces(vertices[size_t(i)]) ? uint32_t(n - std::lround(partSeen[size_t(i)])) : 0);
       });
       size_t traced = 0;
-      blockedRays_ = 0;
-      for (int i = 0; i < nv; ++i)
-        if (!unoccludable_[vertices[size_t(i)]]) {
-          ++traced;
-          blockedRays_ += uint64_t(samples) - uint64_t(std::llround(seen[size_t(i)]));
-        }
+      for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
       if (visibility_) r.rays += uint64_t(traced) * uint64_t(samples);
+      blockedRays_ = 0;
+      for (uint32_t b : chunkBlocked) blockedRays_ += b;
+      hitsWritten_ = false;
+      if (keep && double(blockedRays_) * 12 <= kHitBytes) {
+        // Where each vertex's hits of each launch go: vertex-major, so that a vertex's hits
+        // lie together.
+        const size_t chunks = chunkBlocked.size() / size_t(nv);
+        std::vector<int32_t> start(size_t(nv) * chunks + 1, 0);
+        for (size_t i = 0; i < size_t(nv); ++i)
+          for (size_t c = 0; c < chunks; ++c)
+            start[i * chunks + c + 1] = start[i * chunks + c] + int32_t(chunkBlocked[c * size_t(nv) + i]);
+        hitStart_ = rt_.upload(start);
+        hits_ = cl::Buffer(rt_.context(), CL_MEM_READ_WRITE, std::max<size_t>(12, size_t(blockedRays_) * 12));
+        hitChunks_ = int(chunks);
+      } else {
+        hitChunks_ = 0;
+      }
       r.totalSamples += uint64_t(nv) * uint64_t(samples);
     }
     for (double& x : sums) x /= samples;
@@ -125,14 +143,42 @@ class Tracer {
       k.setArg(10, prev);
       k.setArg(11, out);
       const bool reuse = !blocked_.empty() && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
+      const bool record = reuse && hitChunks_ > 0 && !hitsWritten_, replay = reuse && hitChunks_ > 0 && hitsWritten_;
       std::vector<float> part(sums.size());
-      forEachChunk(k, samples, nv, 12, reuse ? MaskUse::Read : MaskUse::None, [&] {
+      auto collect = [&](int, int) {
         rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
         for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
-      });
+      };
+      if (replay) {  // the hits of the first bounce, gathered again
+        cl::Kernel g = rt_.kernel("transport.cl", "transport_gather",
+                                  detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
+        g.setArg(0, nv);
+        g.setArg(1, hits_);
+        g.setArg(2, hitStart_);
+        g.setArg(3, hitChunks_);
+        g.setArg(5, indices_);
+        g.setArg(6, albedo_);
+        g.setArg(7, prev);
+        g.setArg(8, out);
+        for (int c = 0; c < hitChunks_; ++c) {
+          g.setArg(4, c);
+          rt_.queue().enqueueNDRangeKernel(g, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
+                                           cl::NDRange(kLocalSize));
+          collect(c, 0);
+        }
+      } else {
+        forEachChunk(k, samples, nv, 12, reuse ? MaskUse::Read : MaskUse::None, [&](int chunk) {
+          if (o_.packetWidth <= 0) return;
+          k.setArg(15, record ? hits_ : noMask_);
+          k.setArg(16, record ? hitStart_ : noMask_);
+          k.setArg(17, record ? hitChunks_ : 0);
+          k.setArg(18, chunk);
+        }, collect);
+        hitsWritten_ = record;
+      }
       size_t traced = 0;  // the kernel skips vertices that nothing can reach
       for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
-      r.rays += reuse ? blockedRays_ : uint64_t(traced) * uint64_t(samples);
+      r.rays += replay ? 0 : reuse ? blockedRays_ : uint64_t(traced) * uint64_t(samples);
       r.totalSamples += uint64_t(nv) * uint64_t(samples);
     }
     for (double& x : sums) x /= samples;
@@ -152,6 +198,12 @@ class Tracer {
     return k;
   }
 
+  // Whether the kernels trace rays from vertex v (it has a normal and a triangle in reach).
+  bool traces(uint32_t v) const {
+    const float* n = &setup_.frames[12 * size_t(v) + 8];
+    return !unoccludable_[v] && (n[0] != 0 || n[1] != 0 || n[2] != 0);
+  }
+
   // Origins (w = 1: unoccludable) and frames of the listed vertices.
   void uploadVertices(const std::vector<uint32_t>& vertices) {
     std::vector<float> origins(vertices.size() * 4), frames(vertices.size() * 12);
@@ -167,9 +219,11 @@ class Tracer {
   // Launches `k` over nv vertices for each chunk of the direction set, then `collect`.
   // paddedArg: the packet kernels' argument index of the padded direction count, followed
   // by the blocked-ray mask and its words per vertex (written, read, or none: 0 words).
+  // before(chunk) sets what else a launch needs; collect(chunk, directions) reads it back.
   enum class MaskUse { None, Write, Read };
-  template <class Collect>
-  void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, MaskUse mask, Collect&& collect) {
+  template <class Before, class Collect>
+  void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, MaskUse mask, Before&& before,
+                    Collect&& collect) {
     const bool packet = o_.packetWidth > 0;
     k.setArg(0, nv);
     for (int first = 0, chunk = 0; first < samples; first += detail::kTransportSampleChunk, ++chunk) {
@@ -188,9 +242,10 @@ class Tracer {
         k.setArg(paddedArg + 1, mask == MaskUse::None ? noMask_ : blocked_[size_t(chunk)]);
         k.setArg(paddedArg + 2, mask == MaskUse::None ? 0 : words);
       }
+      before(chunk);
       rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
                                        cl::NDRange(kLocalSize));
-      collect();
+      collect(chunk, n);
     }
   }
 
@@ -205,6 +260,11 @@ class Tracer {
   bool keepBlocked_ = false;
   std::vector<cl::Buffer> blocked_;  // per chunk of directions: V × words ushort
   uint64_t blockedRays_ = 0;         // the rays the last direct() found blocked
+  // The first bounce's hits of those rays (3 floats each) and where each vertex's start,
+  // per launch (hitChunks_ launches; 0: not kept).
+  cl::Buffer hits_, hitStart_;
+  int hitChunks_ = 0;
+  bool hitsWritten_ = false;
 };
 
 // The size of the requested vertex range; throws UsageError when it leaves the mesh
