@@ -107,7 +107,6 @@ class Tracer {
           for (size_t c = 0; c < chunks; ++c)
             start[i * chunks + c + 1] = start[i * chunks + c] + int32_t(chunkBlocked[c * size_t(nv) + i]);
         hitStart_ = rt_.upload(start);
-        hits_ = cl::Buffer(rt_.context(), CL_MEM_READ_WRITE, std::max<size_t>(12, size_t(blockedRays_) * 12));
         hitChunks_ = int(chunks);
       } else {
         hitChunks_ = 0;
@@ -123,8 +122,9 @@ class Tracer {
   }
 
   // T^(k+1) of `vertices` (channels × order² each) from T^(k) of every vertex in `prev`.
+  // more: another bounce may follow (worth keeping the hits for).
   std::vector<double> bounce(const std::vector<uint32_t>& vertices, int samples, int channels,
-                             const cl::Buffer& prev, TransportResult& r) {
+                             const cl::Buffer& prev, bool more, TransportResult& r) {
     const int nv = int(vertices.size()), stride = channels * nc_;
     std::vector<double> sums(size_t(nv) * stride, 0.0);
     if (nv > 0) {
@@ -143,7 +143,9 @@ class Tracer {
       k.setArg(10, prev);
       k.setArg(11, out);
       const bool reuse = !blocked_.empty() && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
-      const bool record = reuse && hitChunks_ > 0 && !hitsWritten_, replay = reuse && hitChunks_ > 0 && hitsWritten_;
+      const bool record = reuse && more && hitChunks_ > 0 && !hitsWritten_;
+      const bool replay = reuse && hitChunks_ > 0 && hitsWritten_;
+      if (record) hits_ = cl::Buffer(rt_.context(), CL_MEM_READ_WRITE, std::max<size_t>(12, size_t(blockedRays_) * 12));
       std::vector<float> part(sums.size());
       auto collect = [&](int, int) {
         rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
@@ -429,7 +431,9 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     cl::Buffer prevBuf(rt.context(), CL_MEM_READ_ONLY, prev.size() * 4);
     for (int b = 1; b <= o.bounces; ++b) {
       rt.queue().enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
-      auto evaluate = [&](const std::vector<uint32_t>& vs, int n) { return tracer.bounce(vs, n, ch, prevBuf, r); };
+      auto evaluate = [&](const std::vector<uint32_t>& vs, int n) {
+        return tracer.bounce(vs, n, ch, prevBuf, b < o.bounces, r);
+      };
       std::vector<double> next(prev.size(), 0.0);
       if (!tolerance) {
         next = evaluate(range, o.samples);
