@@ -177,8 +177,8 @@ inline intP pk_lanes(int bits) {
 // BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
 // dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).
 // blocked: when maskWords > 0, V × maskWords (= paddedCount / BVH_PACKET) words, one per
-//          packet, with bit j set where the packet's ray j is blocked (for the bounces,
-//          which trace the same rays: transport_bounce_packet).
+//          packet, with bit j set where the packet's ray j is blocked, written for every
+//          vertex (for the bounces, which trace the same rays: transport_bounce_packet).
 // Other arguments as transport_direct; outputs identical up to float summation order.
 __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global const float4* origins,
                                       __global const float4* frames, __global const float* dirsSoA,
@@ -224,6 +224,8 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       UNROLL
       for (int k = 0; k < SH_COUNT; ++k) acc[k] += select((floatP)(0.0f), y[k], live);
     }
+  } else {
+    for (int w = 0; w < maskWords; ++w) blocked[(size_t)vi * maskWords + w] = 0;  // no normal: no rays
   }
   // Fixed-order horizontal sums: deterministic.
   for (int k = 0; k < SH_COUNT; ++k) {

@@ -82,15 +82,26 @@ class Tracer {
       k.setArg(9, vis);
       const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size()), partSeen(seen.size());
-      std::vector<uint32_t> chunkBlocked;  // chunk-major: the blocked rays of each vertex
-      forEachChunk(k, samples, nv, 10, keep ? MaskUse::Write : MaskUse::None, [](int) {}, [&](int, int n) {
-        // One wait for both reads (the queue runs in order).
+      // With the masks: the blocked rays of each vertex in each launch (chunk-major), counted
+      // from the masks themselves, which the first bounce traces (so the two agree).
+      std::vector<uint32_t> chunkBlocked;
+      std::vector<uint16_t> words;
+      forEachChunk(k, samples, nv, 10, keep ? MaskUse::Write : MaskUse::None, [](int) {}, [&](int chunk, int) {
+        // One wait for all reads (the queue runs in order).
         rt_.queue().enqueueReadBuffer(out, CL_FALSE, 0, part.size() * 4, part.data());
+        if (keep) {
+          words.resize(blocked_[size_t(chunk)].getInfo<CL_MEM_SIZE>() / 2);
+          rt_.queue().enqueueReadBuffer(blocked_[size_t(chunk)], CL_FALSE, 0, words.size() * 2, words.data());
+        }
         rt_.queue().enqueueReadBuffer(vis, CL_TRUE, 0, partSeen.size() * 4, partSeen.data());
         for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
         for (size_t i = 0; i < seen.size(); ++i) seen[i] += partSeen[i];
-        for (int i = 0; i < nv; ++i)
-          chunkBlocked.push_back(traces(vertices[size_t(i)]) ? uint32_t(n - std::lround(partSeen[size_t(i)])) : 0);
+        const size_t perVertex = words.size() / size_t(nv);
+        for (size_t i = 0; keep && i < size_t(nv); ++i) {
+          uint32_t count = 0;
+          for (size_t w = 0; w < perVertex; ++w) count += uint32_t(__builtin_popcount(words[i * perVertex + w]));
+          chunkBlocked.push_back(count);
+        }
       });
       size_t traced = 0;
       for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
@@ -198,12 +209,6 @@ class Tracer {
     k.setArg(6, tris_);
     k.setArg(7, setup_.tMax);
     return k;
-  }
-
-  // Whether the kernels trace rays from vertex v (it has a normal and a triangle in reach).
-  bool traces(uint32_t v) const {
-    const float* n = &setup_.frames[12 * size_t(v) + 8];
-    return !unoccludable_[v] && (n[0] != 0 || n[1] != 0 || n[2] != 0);
   }
 
   // Origins (w = 1: unoccludable) and frames of the listed vertices.
