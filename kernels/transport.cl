@@ -46,6 +46,30 @@
 #define UNROLL
 #endif
 
+// Adds ρ(q) T^(k)(q) at the hit (tri, u, v) to acc (tri < 0: no hit). Barycentrics may
+// stray by BVH_EDGE_EPS outside the triangle: clamped and renormalised.
+inline void bounce_gather(int tri, float u, float v, __global const int4* indices, __global const float4* albedo,
+                          __global const float* prev, float* acc) {
+  if (tri < 0) return;
+  u = fmax(u, 0.0f);
+  v = fmax(v, 0.0f);
+  float w = fmax(1.0f - u - v, 0.0f);
+  const float sum = u + v + w;
+  u /= sum, v /= sum, w /= sum;
+  const int4 idx = indices[tri];
+  const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
+  __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
+  __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
+  __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
+  for (int c = 0; c < CHANNELS; ++c) {
+    const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
+    for (int k = 0; k < SH_COUNT; ++k) {
+      const int m = c * SH_COUNT + k;
+      acc[m] += r * (w * t0[m] + u * t1[m] + v * t2[m]);
+    }
+  }
+}
+
 #if !BVH_PACKET
 
 // Direct (bounce 0) transport, one work-item per vertex.
@@ -104,6 +128,7 @@ __kernel void transport_visibility(int vertexCount, int sampleCount, __global co
   }
 }
 
+
 // One interreflection bounce, one work-item per vertex (none for a vertex that no
 // triangle can reach: origin w = 1, as in transport_direct).
 // indices: T × (i0, i1, i2, 0) vertex indices of every mesh triangle
@@ -126,25 +151,7 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
       const float3 d = sampling_to_world(frame, dirs[s]);
       float u = 0.0f, v = 0.0f;
       const int tri = bvh_closest(nodes, tris, o, d, tMax, &u, &v);
-      if (tri < 0) continue;
-      // Barycentrics may stray by BVH_EDGE_EPS outside the triangle: clamp and renormalise.
-      u = fmax(u, 0.0f);
-      v = fmax(v, 0.0f);
-      float w = fmax(1.0f - u - v, 0.0f);
-      const float sum = u + v + w;
-      u /= sum, v /= sum, w /= sum;
-      const int4 idx = indices[tri];
-      const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
-      __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
-      __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
-      __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
-      for (int c = 0; c < CHANNELS; ++c) {
-        const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
-        for (int k = 0; k < SH_COUNT; ++k) {
-          const int j = c * SH_COUNT + k;
-          acc[j] += r * (w * t0[j] + u * t1[j] + v * t2[j]);
-        }
-      }
+      bounce_gather(tri, u, v, indices, albedo, prev, acc);
     }
   }
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
@@ -258,32 +265,8 @@ __kernel void transport_visibility_packet(int vertexCount, int sampleCount, __gl
   }
 }
 
-// Adds ρ(q) T^(k)(q) at the hit (tri, u, v) to acc (tri < 0: no hit). Barycentrics may
-// stray by BVH_EDGE_EPS outside the triangle: clamped and renormalised.
-inline void pk_gather(int tri, float u, float v, __global const int4* indices, __global const float4* albedo,
-                      __global const float* prev, float* acc) {
-  if (tri < 0) return;
-  u = fmax(u, 0.0f);
-  v = fmax(v, 0.0f);
-  float w = fmax(1.0f - u - v, 0.0f);
-  const float sum = u + v + w;
-  u /= sum, v /= sum, w /= sum;
-  const int4 idx = indices[tri];
-  const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
-  __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;
-  __global const float* t1 = prev + (size_t)idx.y * CHANNELS * SH_COUNT;
-  __global const float* t2 = prev + (size_t)idx.z * CHANNELS * SH_COUNT;
-  for (int c = 0; c < CHANNELS; ++c) {
-    const float r = c == 0 ? rho.x : (c == 1 ? rho.y : rho.z);
-    for (int k = 0; k < SH_COUNT; ++k) {
-      const int m = c * SH_COUNT + k;
-      acc[m] += r * (w * t0[m] + u * t1[m] + v * t2[m]);
-    }
-  }
-}
-
 // Packet form of transport_bounce: closest hits BVH_PACKET at a time, then the gather
-// (pk_gather) lane by lane. Arguments as transport_bounce, with dirsSoA and paddedCount as
+// (bounce_gather) lane by lane. Arguments as transport_bounce, with dirsSoA and paddedCount as
 // in transport_direct_packet. A vertex that no triangle can reach (origin w = 1) sees
 // nothing. blocked, maskWords: when maskWords > 0, the direct term's blocked rays
 // (transport_direct_packet) of these same rays: the others hit nothing and are not
@@ -330,7 +313,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
         const int tri = ((int*)&hitTri)[j];
         const float u = ((float*)&hitU)[j], v = ((float*)&hitV)[j];
         if (chunks > 0) out[0] = as_float(tri), out[1] = u, out[2] = v, out += 3;
-        pk_gather(tri, u, v, indices, albedo, prev, acc);
+        bounce_gather(tri, u, v, indices, albedo, prev, acc);
       }
     }
   }
@@ -348,7 +331,7 @@ __kernel void transport_gather(int vertexCount, __global const float* hits, __gl
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
   const int first = hitStart[(size_t)vi * chunks + chunk], last = hitStart[(size_t)vi * chunks + chunk + 1];
   for (int h = first; h < last; ++h)
-    pk_gather(as_int(hits[3 * (size_t)h]), hits[3 * (size_t)h + 1], hits[3 * (size_t)h + 2], indices, albedo, prev, acc);
+    bounce_gather(as_int(hits[3 * (size_t)h]), hits[3 * (size_t)h + 1], hits[3 * (size_t)h + 2], indices, albedo, prev, acc);
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
 }
 
