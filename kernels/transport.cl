@@ -217,13 +217,9 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
       PK_WORLD_DIRS(s);
       intP live = (lane + s) < sampleCount;
 #if VISIBILITY
-      if (trace) {
-        const intP hit = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
-        live &= ~hit;
-        if (maskWords > 0) blocked[(size_t)vi * maskWords + s / BVH_PACKET] = (ushort)pk_bits(hit);
-      } else if (maskWords > 0) {
-        blocked[(size_t)vi * maskWords + s / BVH_PACKET] = 0;
-      }
+      const intP hit = trace ? bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front) : (intP)(0);
+      live &= ~hit;
+      if (maskWords > 0) blocked[(size_t)vi * maskWords + s / BVH_PACKET] = (ushort)pk_bits(hit);
 #endif
       seen -= live;  // live lanes are −1
       floatP y[SH_COUNT];
