@@ -23,7 +23,7 @@ typedef struct {
 // the binary one (host/src/bvh.cpp): child slot i holds its box in lane i of the six
 // float4 (min x, min y, min z, max x, max y, max z) and
 //   count[i] = 0:  an inner node, child[i] its index in the wide array;
-//   count[i] > 0:  a leaf of count[i] triangles starting at child[i] (leaf order);
+//   count[i] > 0:  a leaf of count[i] triangles in blocks from block child[i] (below);
 //   count[i] < 0:  an empty slot, whose box (min = +1e30, max = −1e30) no ray enters.
 typedef struct {
   float minX[4], minY[4], minZ[4], maxX[4], maxY[4], maxZ[4];
@@ -36,5 +36,13 @@ typedef struct {
 // index of the triangle in the mesh, stored bit-for-bit as an int (as_int on
 // the device, memcpy on the host).
 #define BVH_TRI_FLOAT4S 3
+
+// The wide tree's leaf triangles, BVH_BLOCK at a time as a structure of arrays: ten float4
+// per block, v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z, id (as int bits), lane i
+// holding triangle i. A leaf of n triangles takes ceil(n / BVH_BLOCK) consecutive blocks,
+// the lanes past its last triangle repeating it. Bvh4Node leaf slots point at their first
+// block.
+#define BVH_BLOCK 4
+#define BVH_BLOCK_FLOAT4S 10
 
 #endif

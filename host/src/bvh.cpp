@@ -20,6 +20,7 @@ static_assert(sizeof(Bvh::Node) == sizeof(BvhNode), "Bvh::Node mirrors BvhNode")
 static_assert(offsetof(Bvh::Node, offset) == offsetof(BvhNode, offset), "Bvh::Node mirrors BvhNode");
 static_assert(offsetof(Bvh::Node, count) == offsetof(BvhNode, count), "Bvh::Node mirrors BvhNode");
 static_assert(BVH_TRI_FLOAT4S == 3, "packed triangles are three float4");
+static_assert(BVH_BLOCK_FLOAT4S == 10 && BVH_BLOCK == kBvhBlock, "triangle blocks are ten float4");
 static_assert(sizeof(Bvh4Node) == 128 && sizeof(Bvh::WideNode) == sizeof(Bvh4Node), "Bvh::WideNode mirrors Bvh4Node");
 static_assert(offsetof(Bvh::WideNode, child) == offsetof(Bvh4Node, child), "Bvh::WideNode mirrors Bvh4Node");
 
@@ -45,6 +46,9 @@ struct Prim {
   float centroid[3];
   uint32_t tri;
 };
+
+// Blocks of kBvhBlock triangles that n triangles fill.
+double blocks(size_t n) { return double((n + kBvhBlock - 1) / kBvhBlock); }
 
 // Ranges of at least this many triangles split at the root are built on two threads.
 constexpr size_t kParallelBuild = 4096;
@@ -100,12 +104,13 @@ struct Builder {
         left.grow(binBox[b]);
         leftCount += binCount[b];
         if (leftCount == 0 || rightCount[b + 1] == 0) continue;
-        const double cost = left.area() * leftCount + rightArea[b + 1] * rightCount[b + 1];
+        const double cost = left.area() * blocks(leftCount) + rightArea[b + 1] * blocks(rightCount[b + 1]);
         if (cost < bestCost) bestCost = cost, bestAxis = axis, bestSplit = b;
       }
     }
-    // Leaf when splitting is not cheaper (traversal cost 1, intersection cost 1 per triangle).
-    const double leafCost = bounds.area() * count;
+    // Leaf when splitting is not cheaper (traversal cost 1, intersection cost 1 per block of
+    // kBvhBlock triangles, which the single-ray kernels test at once).
+    const double leafCost = bounds.area() * blocks(count);
     size_t mid;
     int splitAxis = bestAxis;
     if (bestAxis < 0) {
@@ -253,6 +258,23 @@ Bvh buildBvh(const Mesh& mesh) {
     for (int c = 0; c < 3; ++c) o[4 + c] = v1[c] - v0[c], o[8 + c] = v2[c] - v0[c];
     o[7] = o[11] = 0.0f;
   }
+  // The wide tree's leaves in blocks, in the order the wide nodes reference them (a node's
+  // leaves side by side); each leaf slot's child becomes its first block.
+  for (Bvh::WideNode& w : bvh.wide)
+    for (int k = 0; k < 4; ++k) {
+      if (w.count[k] <= 0) continue;
+      const size_t first = size_t(w.child[k]), n = size_t(w.count[k]);
+      w.child[k] = int32_t(bvh.blocks.size() / (4 * BVH_BLOCK_FLOAT4S));
+      for (size_t b = 0; b < n; b += kBvhBlock) {
+        float blk[4 * BVH_BLOCK_FLOAT4S];
+        for (size_t l = 0; l < size_t(kBvhBlock); ++l) {
+          const float* t = &bvh.packed[12 * (first + std::min(b + l, n - 1))];  // pad: the last again
+          const float src[10] = {t[0], t[1], t[2], t[4], t[5], t[6], t[8], t[9], t[10], t[3]};
+          for (int c = 0; c < BVH_BLOCK_FLOAT4S; ++c) blk[4 * c + l] = src[c];
+        }
+        bvh.blocks.insert(bvh.blocks.end(), blk, blk + 4 * BVH_BLOCK_FLOAT4S);
+      }
+    }
   return bvh;
 }
 

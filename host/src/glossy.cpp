@@ -220,7 +220,7 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
     st.degenerateTriangles = bvh.degenerateTriangles;
     unocc = detail::unoccludableFromBvh(mesh, bvh, setup);
     nodes = detail::uploadBvhNodes(rt, bvh, true);
-    tris = bvh.packed.empty() ? rt.upload(std::vector<float>(12, 0.0f)) : rt.upload(bvh.packed);
+    tris = detail::uploadBvhTriangles(rt, bvh, true);
   } else {
     nodes = rt.upload(std::vector<float>(8, 0.0f));
     tris = rt.upload(std::vector<float>(12, 0.0f));

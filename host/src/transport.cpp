@@ -56,7 +56,7 @@ class Tracer {
       r.degenerateTriangles = bvh.degenerateTriangles;
       unoccludable_ = detail::unoccludableFromBvh(mesh, bvh, setup);
       nodes_ = detail::uploadBvhNodes(rt, bvh, o.packetWidth > 0);
-      tris_ = rt.upload(bvh.packed);
+      tris_ = detail::uploadBvhTriangles(rt, bvh, o.packetWidth > 0);
     } else {
       unoccludable_.assign(mesh.vertexCount(), 0);
       nodes_ = rt.upload(std::vector<float>(8, 0.0f));
@@ -478,7 +478,7 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
   const Bvh bvh = buildBvh(mesh);
   const bool packet = o.packetWidth > 0;
-  cl::Buffer nodes = detail::uploadBvhNodes(rt, bvh, packet), tris = rt.upload(bvh.packed);
+  cl::Buffer nodes = detail::uploadBvhNodes(rt, bvh, packet), tris = detail::uploadBvhTriangles(rt, bvh, packet);
   const int nv = int(mesh.vertexCount());
   int padded = 0;
   const std::vector<float> dirs = packet ? detail::packetDirections(setup.dirs, padded) : setup.dirs;

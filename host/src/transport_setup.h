@@ -40,6 +40,8 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options, bool wi
 // the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
 // no ray enters.
 cl::Buffer uploadBvhNodes(Runtime& rt, const Bvh& bvh, bool wide);
+// Its triangles to match: the wide tree's blocks, else the packed leaf-ordered triangles.
+cl::Buffer uploadBvhTriangles(Runtime& rt, const Bvh& bvh, bool wide);
 // Flags per vertex (see unoccludableVertices in transport.h) from an existing BVH.
 std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const RaySetup& setup);
 // The directions (N × 4) as the packet kernels read them: x, y, z as three rows of

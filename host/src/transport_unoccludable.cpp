@@ -3,6 +3,7 @@
 
 #include "prtbake/bvh.h"
 #include "prtbake/transport.h"
+#include "bvh_types.h"
 #include "parallel.h"
 #include "transport_setup.h"
 
@@ -76,6 +77,12 @@ cl::Buffer uploadBvhNodes(Runtime& rt, const Bvh& bvh, bool wide) {
   }
   if (!bvh.nodes.empty()) return rt.upload(bvh.nodes);
   return rt.upload(std::vector<Bvh::Node>{Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}});
+}
+
+cl::Buffer uploadBvhTriangles(Runtime& rt, const Bvh& bvh, bool wide) {
+  const std::vector<float>& t = wide ? bvh.blocks : bvh.packed;
+  if (!t.empty()) return rt.upload(t);
+  return rt.upload(std::vector<float>(wide ? 4 * BVH_BLOCK_FLOAT4S : 4 * BVH_TRI_FLOAT4S, 0.0f));
 }
 
 }  // namespace detail

@@ -1,7 +1,8 @@
 // prtbake/bvh.h: the bounding volume hierarchy the transport kernels traverse.
 //
 // Built on the host with the surface area heuristic over binned centroids
-// (kBvhBins bins per axis, leaves of at most kBvhMaxLeaf triangles), then
+// (kBvhBins bins per axis, leaves of at most kBvhMaxLeaf triangles, a leaf's
+// cost counted in blocks of kBvhBlock), then
 // flattened depth-first: the left child of an inner node is the next node, the
 // right child is `offset` (pbrt's LinearBVHNode layout, 32 bytes). Zero-area
 // triangles cannot occlude and are left out. The node layout is the POD struct
@@ -17,6 +18,7 @@ namespace prtbake {
 
 constexpr int kBvhBins = 16;
 constexpr int kBvhMaxLeaf = 4;
+constexpr int kBvhBlock = 4;  // triangles the single-ray kernels test at once (SAH leaf cost per block)
 constexpr int kBvhMaxDepth = 60;  // the kernels' traversal stack holds 64 entries
 
 struct Bvh {
@@ -34,11 +36,14 @@ struct Bvh {
     float bmin[3][4], bmax[3][4];  // [axis][child slot]
     int32_t child[4], count[4];
   };
-  std::vector<WideNode> wide;
+  std::vector<WideNode> wide;      // leaf slots: child = first block, count = triangles
   std::vector<uint32_t> triangles;   // mesh triangle index of each leaf slot
   // Leaf-ordered triangles packed for the kernels: 12 floats per triangle,
   // (v0, id-as-int-bits), (v1 − v0, 0), (v2 − v0, 0).
   std::vector<float> packed;
+  // The wide tree's leaf triangles in blocks of kBvhBlock (kernels/bvh_types.h, 40 floats
+  // each): a leaf takes ceil(count / kBvhBlock) blocks, the last padded with its last triangle.
+  std::vector<float> blocks;
   int depth = 0;
   size_t degenerateTriangles = 0;   // zero-area triangles left out
 };
