@@ -22,9 +22,11 @@ typedef struct {
 // One node of the 4-wide BVH the packet kernels traverse (128 bytes), collapsed from
 // the binary one (host/src/bvh.cpp): child slot i holds its box in lane i of the six
 // float4 (min x, min y, min z, max x, max y, max z) and
-//   count[i] = 0:  an inner node, child[i] its index in the wide array;
 //   count[i] > 0:  a leaf of count[i] triangles in blocks from block child[i] (below);
-//   count[i] < 0:  an empty slot, whose box (min = +1e30, max = −1e30) no ray enters.
+//   count[i] = −1: an empty slot, whose box (min = +1e30, max = −1e30) no ray enters;
+//   count[i] ≤ −2: an inner node, child[i] its index in the wide array, and −2 − count[i]
+//                  the first block of that node's own leaves (0 if it has none), so that
+//                  a traversal entering it can start fetching them with the node.
 typedef struct {
   float minX[4], minY[4], minZ[4], maxX[4], maxY[4], maxZ[4];
   int child[4];

@@ -259,8 +259,14 @@ Bvh buildBvh(const Mesh& mesh) {
     o[7] = o[11] = 0.0f;
   }
   // The wide tree's leaves in blocks, in the order the wide nodes reference them (a node's
-  // leaves side by side); each leaf slot's child becomes its first block.
-  for (Bvh::WideNode& w : bvh.wide)
+  // leaves side by side); each leaf slot's child becomes its first block, and each inner
+  // slot's count −2 − the first block of that child's leaves (block 0 if it has none).
+  std::vector<int32_t> firstBlock(bvh.wide.size(), 0);
+  for (size_t i = 0; i < bvh.wide.size(); ++i) {
+    Bvh::WideNode& w = bvh.wide[i];
+    bool leaves = false;
+    for (int k = 0; k < 4; ++k) leaves = leaves || w.count[k] > 0;
+    if (leaves) firstBlock[i] = int32_t(bvh.blocks.size() / (4 * BVH_BLOCK_FLOAT4S));
     for (int k = 0; k < 4; ++k) {
       if (w.count[k] <= 0) continue;
       const size_t first = size_t(w.child[k]), n = size_t(w.count[k]);
@@ -275,6 +281,10 @@ Bvh buildBvh(const Mesh& mesh) {
         bvh.blocks.insert(bvh.blocks.end(), blk, blk + 4 * BVH_BLOCK_FLOAT4S);
       }
     }
+  }
+  for (Bvh::WideNode& w : bvh.wide)
+    for (int k = 0; k < 4; ++k)
+      if (w.count[k] == 0) w.count[k] = -2 - firstBlock[size_t(w.child[k])];
   return bvh;
 }
 

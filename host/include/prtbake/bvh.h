@@ -36,7 +36,9 @@ struct Bvh {
     float bmin[3][4], bmax[3][4];  // [axis][child slot]
     int32_t child[4], count[4];
   };
-  std::vector<WideNode> wide;      // leaf slots: child = first block, count = triangles
+  // Leaf slots: child = first block, count = triangles; inner slots: count = −2 − the first
+  // block of the child's own leaves; empty slots: count = −1.
+  std::vector<WideNode> wide;
   std::vector<uint32_t> triangles;   // mesh triangle index of each leaf slot
   // Leaf-ordered triangles packed for the kernels: 12 floats per triangle,
   // (v0, id-as-int-bits), (v1 − v0, 0), (v2 − v0, 0).
