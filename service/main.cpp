@@ -1,7 +1,5 @@
 // prtbake: entry point. Parses the command line, dispatches to a subcommand and
 // maps exceptions to exit codes: 0 success, 1 failed job / bad input, 2 usage.
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -190,36 +188,9 @@ void status(const CommandLine& cl, const std::string& text) {
 
 }  // namespace prtbake::cli
 
-namespace {
-
-// First touches of fresh 4 KiB pages are slow on virtual machines (PERF.md): a cold start
-// spends a third of its time in page faults under PoCL's LLVM (lut: 1.36 s, 0.90 s with
-// huge pages; mary.obj transport 1.85 s, 1.50 s). glibc backs malloc's heap with
-// transparent huge pages when its tunable glibc.malloc.hugetlb=1 is set at start-up, so the
-// process starts itself again once with the tunable added. Nothing changes where huge
-// pages are off (or under AddressSanitizer, whose allocator replaces glibc's), and a
-// failed exec simply continues here.
-void useHugePagesForMalloc(char** argv) {
-#if defined(__SANITIZE_ADDRESS__)
-  return;  // AddressSanitizer's allocator replaces malloc: the tunable would only cost a start-up
-#endif
-  const char* tunables = std::getenv("GLIBC_TUNABLES");
-  const std::string current = tunables ? tunables : "";
-  if (current.find("glibc.malloc.hugetlb") != std::string::npos || std::getenv("PRTBAKE_NO_HUGETLB")) return;
-  const std::string value = current.empty() ? "glibc.malloc.hugetlb=1" : current + ":glibc.malloc.hugetlb=1";
-  if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
-  ::execv("/proc/self/exe", argv);
-  // Not re-executed: restore the environment for child processes.
-  if (tunables) ::setenv("GLIBC_TUNABLES", current.c_str(), 1);
-  else ::unsetenv("GLIBC_TUNABLES");
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   using namespace prtbake;
   using namespace prtbake::cli;
-  useHugePagesForMalloc(argv);
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h" ||
       std::string(argv[1]) == "help") {
     printTopHelp();
