@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
+#include "bvh_types.h"
 #include "prtbake/bvh.h"
 #include "prtbake/mesh.h"
 #include "prtbake/transport.h"
@@ -68,6 +70,70 @@ TEST_CASE("BVH: every non-degenerate triangle in exactly one leaf, nested bounds
         for (int c = 0; c < 3; ++c) REQUIRE((p[c] >= n.bmin[c] && p[c] <= n.bmax[c]));
       }
   }
+}
+
+TEST_CASE("BVH: the wide tree's leaf blocks hold every triangle once; inner slots name their child's first block",
+          "[bvh]") {
+  Mesh m = occludingScene();
+  m.indices.insert(m.indices.end(), {0, 0, 0});  // zero area: in no block
+  const Bvh bvh = buildBvh(m);
+  REQUIRE(bvh.blocks.size() % (4 * BVH_BLOCK_FLOAT4S) == 0);
+  const size_t nBlocks = bvh.blocks.size() / (4 * BVH_BLOCK_FLOAT4S);
+  // Lane `lane` of float4 `c` of block b.
+  auto at = [&](size_t b, int c, int lane) { return bvh.blocks[(b * BVH_BLOCK_FLOAT4S + size_t(c)) * 4 + size_t(lane)]; };
+  std::vector<int> seen(m.triangleCount(), 0);
+  std::vector<int> stack = {0};
+  size_t leaves = 0, sizes = 0;
+  while (!stack.empty()) {
+    const Bvh::WideNode& w = bvh.wide[size_t(stack.back())];
+    stack.pop_back();
+    for (int k = 0; k < 4; ++k) {
+      const int count = w.count[k], child = w.child[k];
+      if (count == -1) {
+        REQUIRE(w.bmin[0][k] > w.bmax[0][k]);  // no ray enters an empty slot
+        continue;
+      }
+      if (count <= -2) {
+        const Bvh::WideNode& c = bvh.wide[size_t(child)];
+        int first = -1;  // the child's first leaf block (0 when it has no leaf)
+        for (int j = 0; j < 4; ++j)
+          if (c.count[j] > 0) first = first < 0 ? c.child[j] : std::min(first, c.child[j]);
+        CHECK(-2 - count == std::max(first, 0));
+        stack.push_back(child);
+        continue;
+      }
+      ++leaves, sizes += size_t(count);
+      const size_t blocks = size_t(count + BVH_BLOCK - 1) / BVH_BLOCK;
+      REQUIRE(size_t(child) + blocks <= nBlocks);
+      for (int i = 0; i < int(blocks) * BVH_BLOCK; ++i) {
+        const size_t b = size_t(child) + size_t(i / BVH_BLOCK);
+        const int lane = i % BVH_BLOCK, last = std::min(i, count - 1);  // past the leaf's end: its last again
+        int32_t id;
+        const float idBits = at(b, 9, lane);
+        std::memcpy(&id, &idBits, 4);
+        REQUIRE(id >= 0);
+        REQUIRE(size_t(id) < m.triangleCount());
+        if (i < count) ++seen[size_t(id)];
+        else {
+          const float lastBits = at(size_t(child) + size_t(last / BVH_BLOCK), 9, last % BVH_BLOCK);
+          CHECK(std::memcmp(&idBits, &lastBits, 4) == 0);
+        }
+        // The corner and edges are the triangle's, and inside the slot's box.
+        const float* v[3];
+        for (int c = 0; c < 3; ++c) v[c] = &m.positions[3 * size_t(m.indices[3 * size_t(id) + size_t(c)])];
+        for (int c = 0; c < 3; ++c) {
+          CHECK(at(b, c, lane) == v[0][c]);
+          CHECK(at(b, 3 + c, lane) == v[1][c] - v[0][c]);
+          CHECK(at(b, 6 + c, lane) == v[2][c] - v[0][c]);
+          for (int q = 0; q < 3; ++q) REQUIRE((v[q][c] >= w.bmin[c][k] && v[q][c] <= w.bmax[c][k]));
+        }
+      }
+    }
+  }
+  for (size_t t = 0; t + 1 < m.triangleCount(); ++t) REQUIRE(seen[t] == 1);
+  CHECK(seen.back() == 0);  // the zero-area triangle
+  // Leaves fill their blocks: the SAH counts a leaf's cost per block of four.
+  CHECK(double(sizes) / double(leaves) > 2.5);
 }
 
 TEST_CASE("Kernel vs double reference: same visibility except at edges, same coefficients", "[bvh][kernel]") {
