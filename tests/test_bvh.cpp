@@ -72,7 +72,7 @@ TEST_CASE("BVH: every non-degenerate triangle in exactly one leaf, nested bounds
   }
 }
 
-TEST_CASE("BVH: the wide tree's leaf blocks hold every triangle once; inner slots name their child's first block",
+TEST_CASE("BVH: the wide tree's leaf blocks hold every triangle once, and inner slots name their child's first block",
           "[bvh]") {
   Mesh m = occludingScene();
   m.indices.insert(m.indices.end(), {0, 0, 0});  // zero area: in no block
