@@ -261,26 +261,30 @@ Bvh buildBvh(const Mesh& mesh) {
   // The wide tree's leaves in blocks, in the order the wide nodes reference them (a node's
   // leaves side by side); each leaf slot's child becomes its first block, and each inner
   // slot's count −2 − the first block of that child's leaves (block 0 if it has none).
+  constexpr size_t kBlockFloats = 4 * BVH_BLOCK_FLOAT4S;
+  size_t nBlocks = 0;
+  for (const Bvh::WideNode& w : bvh.wide)
+    for (int k = 0; k < 4; ++k) nBlocks += w.count[k] > 0 ? size_t(blocks(size_t(w.count[k]))) : 0;
+  bvh.blocks.resize(nBlocks * kBlockFloats);
   std::vector<int32_t> firstBlock(bvh.wide.size(), 0);
+  size_t next = 0;
   for (size_t i = 0; i < bvh.wide.size(); ++i) {
     Bvh::WideNode& w = bvh.wide[i];
-    bool leaves = false;
-    for (int k = 0; k < 4; ++k) leaves = leaves || w.count[k] > 0;
-    if (leaves) firstBlock[i] = int32_t(bvh.blocks.size() / (4 * BVH_BLOCK_FLOAT4S));
+    const size_t own = next;
     for (int k = 0; k < 4; ++k) {
       if (w.count[k] <= 0) continue;
       const size_t first = size_t(w.child[k]), n = size_t(w.count[k]);
-      w.child[k] = int32_t(bvh.blocks.size() / (4 * BVH_BLOCK_FLOAT4S));
-      for (size_t b = 0; b < n; b += kBvhBlock) {
-        float blk[4 * BVH_BLOCK_FLOAT4S];
+      w.child[k] = int32_t(next);
+      for (size_t b = 0; b < n; b += kBvhBlock, ++next) {
+        float* blk = &bvh.blocks[next * kBlockFloats];
         for (size_t l = 0; l < size_t(kBvhBlock); ++l) {
           const float* t = &bvh.packed[12 * (first + std::min(b + l, n - 1))];  // pad: the last again
-          const float src[10] = {t[0], t[1], t[2], t[4], t[5], t[6], t[8], t[9], t[10], t[3]};
+          const float src[BVH_BLOCK_FLOAT4S] = {t[0], t[1], t[2], t[4], t[5], t[6], t[8], t[9], t[10], t[3]};
           for (int c = 0; c < BVH_BLOCK_FLOAT4S; ++c) blk[4 * c + l] = src[c];
         }
-        bvh.blocks.insert(bvh.blocks.end(), blk, blk + 4 * BVH_BLOCK_FLOAT4S);
       }
     }
+    firstBlock[i] = next > own ? int32_t(own) : 0;
   }
   for (Bvh::WideNode& w : bvh.wide)
     for (int k = 0; k < 4; ++k)
