@@ -2,13 +2,14 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <map>
-#include <tuple>
+#include <future>
+#include <vector>
 
 #include <tiny_obj_loader.h>
 
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "prtbake/hash.h"
 #include "prtbake/mesh.h"
 
 namespace prtbake {
@@ -17,38 +18,75 @@ namespace {
 
 // tinyobjloader reads "nan"/"inf" coordinates as 0 and lets out-of-range face
 // indices overflow silently, so the text is checked first: every number on a
-// v/vn/vt line must be finite, and every face index must fit an int.
+// v/vn/vt line must be finite (as strtod reads it), and every face index must fit an int.
+// Plain decimals are judged from their digits (at most 200 before the exponent and two
+// in it: finite); anything else goes to strtod/strtoll.
+bool isBlank(char c) { return c == ' ' || (c >= '\t' && c <= '\r'); }  // as isspace in the C locale
+bool isSeparator(char c) { return isBlank(c) || c == '/' || c == '\0'; }
+bool isDigit(char c) { return c >= '0' && c <= '9'; }
+
+// A plain decimal token at p that is surely finite (or, for faces, fits an int); its end
+// in *end. False: let strtod/strtoll judge it.
+bool plainNumber(const char* p, bool integer, const char** end) {
+  if (*p == '+' || *p == '-') ++p;
+  int digits = 0;
+  for (; isDigit(*p); ++p) ++digits;
+  if (integer) {
+    *end = p;
+    return digits > 0 && digits <= 9 && isSeparator(*p);
+  }
+  if (*p == '.')
+    for (++p; isDigit(*p); ++p) ++digits;
+  if (digits == 0 || digits > 200) return false;
+  if (*p == 'e' || *p == 'E') {
+    ++p;
+    if (*p == '+' || *p == '-') ++p;
+    int expDigits = 0;
+    for (; isDigit(*p); ++p) ++expDigits;
+    if (expDigits == 0 || expDigits > 2) return false;
+  }
+  *end = p;
+  return isSeparator(*p);
+}
+
 void checkObjText(const std::string& path, const std::string& text) {
   size_t lineNo = 0, pos = 0;
   while (pos < text.size()) {
     size_t end = text.find('\n', pos);
     if (end == std::string::npos) end = text.size();
-    const std::string line = text.substr(pos, end - pos);
+    const char* line = text.c_str() + pos;
+    const char* const lineEnd = text.c_str() + end;
     pos = end + 1;
     ++lineNo;
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos) continue;
-    const bool coords = line.compare(first, 2, "v ") == 0 || line.compare(first, 3, "vn ") == 0 ||
-                        line.compare(first, 3, "vt ") == 0 || line.compare(first, 2, "v\t") == 0;
-    const bool face = line.compare(first, 2, "f ") == 0 || line.compare(first, 2, "f\t") == 0;
+    while (line < lineEnd && (*line == ' ' || *line == '\t')) ++line;
+    const size_t len = size_t(lineEnd - line);
+    if (len < 2) continue;
+    const bool coords = (line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ||
+                        (len >= 3 && line[0] == 'v' && (line[1] == 'n' || line[1] == 't') && line[2] == ' ');
+    const bool face = line[0] == 'f' && (line[1] == ' ' || line[1] == '\t');
     if (!coords && !face) continue;
-    const char* p = line.c_str() + first + (line[first + 1] == ' ' || line[first + 1] == '\t' ? 1 : 2);
-    while (*p) {
-      while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '/') ++p;
-      if (!*p) break;
-      char* stop = nullptr;
+    const char* p = line + (line[1] == ' ' || line[1] == '\t' ? 1 : 2);
+    while (p < lineEnd && *p) {
+      while (p < lineEnd && (isBlank(*p) || *p == '/')) ++p;  // as strtod skips
+      if (p >= lineEnd || !*p) break;
+      const char* stop = nullptr;
+      if (plainNumber(p, face, &stop)) {
+        p = stop;
+        continue;
+      }
+      char* s = nullptr;
       if (coords) {
-        const double v = std::strtod(p, &stop);
-        if (stop != p && !std::isfinite(v))
+        const double v = std::strtod(p, &s);
+        if (s != p && !std::isfinite(v))
           throw InputError(path, "line " + std::to_string(lineNo) + ": non-finite coordinate");
       } else {
         errno = 0;
-        const long long v = std::strtoll(p, &stop, 10);
-        if (stop != p && (errno == ERANGE || v > 2147483647LL || v < -2147483647LL))
+        const long long v = std::strtoll(p, &s, 10);
+        if (s != p && (errno == ERANGE || v > 2147483647LL || v < -2147483647LL))
           throw InputError(path, "line " + std::to_string(lineNo) + ": face index out of range");
       }
-      if (stop == p) ++p;  // not a number: let the parser judge it
-      else p = stop;
+      if (s == p) ++p;  // not a number: let the parser judge it
+      else p = s;
     }
   }
 }
@@ -56,13 +94,16 @@ void checkObjText(const std::string& path, const std::string& text) {
 }  // namespace
 
 Mesh loadObj(const std::string& path) {
-  checkObjText(path, readFile(path));  // also: a missing or unreadable file is an InputError naming it
+  const std::string text = readFile(path);  // a missing or unreadable file is an InputError naming it
+  // The bytes' SHA-256 (for the outputs' provenance) on another thread while they are parsed.
+  auto hash = std::async(std::launch::async, [&text] { return sha256Hex(text.data(), text.size()); });
+  checkObjText(path, text);
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;
   config.vertex_color = false;
-  config.mtl_search_path = "";  // materials are not used: do not read .mtl files
   tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path, config)) {
+  // From memory, with no material text: materials are not used, no .mtl file is read.
+  if (!reader.ParseFromString(text, std::string(), config)) {
     std::string err = reader.Error();
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
     throw InputError(path, "cannot parse OBJ: " + (err.empty() ? std::string("unknown error") : err));
@@ -72,8 +113,16 @@ Mesh loadObj(const std::string& path) {
   mesh.sourcePath = path;
   mesh.inputFiles = {path};
   mesh.format = Mesh::Format::Obj;
-  std::map<std::tuple<int, int, int>, uint32_t> seen;
   const size_t np = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3, nt = attrib.texcoords.size() / 2;
+  // One mesh vertex per distinct (position, texcoord, normal) triple, numbered in order of
+  // first use: the triples met so far per position, as linked lists.
+  struct Corner {
+    int vt, vn;
+    uint32_t id, next;
+  };
+  constexpr uint32_t kNone = ~0u;
+  std::vector<uint32_t> firstCorner(np, kNone);
+  std::vector<Corner> corners;
   for (const auto& shape : reader.GetShapes()) {
     const auto& ix = shape.mesh.indices;
     size_t offset = 0;
@@ -89,20 +138,22 @@ Mesh loadObj(const std::string& path) {
           throw InputError(path, "face " + std::to_string(f + 1) + " in '" + shape.name + "' uses a missing vertex");
         const int vn = idx.normal_index >= 0 && size_t(idx.normal_index) < nn ? idx.normal_index : -1;
         const int vt = idx.texcoord_index >= 0 && size_t(idx.texcoord_index) < nt ? idx.texcoord_index : -1;
-        const auto key = std::make_tuple(idx.vertex_index, vt, vn);
-        auto it = seen.find(key);
-        if (it == seen.end()) {
-          const uint32_t id = uint32_t(mesh.vertexCount());
-          it = seen.emplace(key, id).first;
+        uint32_t* link = &firstCorner[size_t(idx.vertex_index)];
+        while (*link != kNone && !(corners[*link].vt == vt && corners[*link].vn == vn)) link = &corners[*link].next;
+        uint32_t at = *link;
+        if (at == kNone) {
+          at = *link = uint32_t(corners.size());  // before push_back, which may move `corners`
+          corners.push_back({vt, vn, uint32_t(mesh.vertexCount()), kNone});
           for (int c = 0; c < 3; ++c) mesh.positions.push_back(attrib.vertices[3 * size_t(idx.vertex_index) + c]);
           for (int c = 0; c < 3; ++c) mesh.normals.push_back(vn >= 0 ? attrib.normals[3 * size_t(vn) + c] : 0.0f);
           mesh.albedo.insert(mesh.albedo.end(), {1.0f, 1.0f, 1.0f});
         }
-        mesh.indices.push_back(it->second);
+        mesh.indices.push_back(corners[at].id);
       }
       offset += 3;
     }
   }
+  mesh.sourceSha256 = hash.get();
   // Normalise the given normals (a zero one is recomputed by fillMissingNormals).
   for (size_t v = 0; v < mesh.vertexCount(); ++v) {
     float* n = &mesh.normals[3 * v];

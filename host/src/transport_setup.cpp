@@ -3,7 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
+#include <numeric>
 #include <tuple>
 
 #include "prtbake/error.h"
@@ -216,17 +216,25 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDire
   s.epsilon = 1e-4 * diag + 1e-6 * maxAbs;
   s.tMax = float(4 * diag + 4 * s.epsilon);
   // Geometric normal per position (welded by exact coordinates): the area-weighted sum
-  // of the face normals of every triangle touching that position.
-  std::map<std::tuple<float, float, float>, std::array<double, 3>> geo;
+  // of the face normals of every triangle touching that position, in triangle order.
+  // Positions are welded by sorting the vertices by coordinates (equal as floats: one).
   const auto& p = mesh.positions;
+  std::vector<uint32_t> weld(nv), byPos(nv);
+  std::iota(byPos.begin(), byPos.end(), 0u);
   auto key = [&](uint32_t v) { return std::make_tuple(p[3 * v], p[3 * v + 1], p[3 * v + 2]); };
+  std::sort(byPos.begin(), byPos.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+  for (size_t i = 0, id = 0; i < nv; ++i) {
+    if (i > 0 && key(byPos[i - 1]) < key(byPos[i])) ++id;
+    weld[byPos[i]] = uint32_t(id);
+  }
+  std::vector<std::array<double, 3>> geo(nv, {0, 0, 0});
   for (size_t t = 0; t < mesh.triangleCount(); ++t) {
     const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1], i2 = mesh.indices[3 * t + 2];
     double e1[3], e2[3];
     for (int c = 0; c < 3; ++c) e1[c] = double(p[3 * i1 + c]) - p[3 * i0 + c], e2[c] = double(p[3 * i2 + c]) - p[3 * i0 + c];
     const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
     for (uint32_t v : {i0, i1, i2}) {
-      auto& g = geo[key(v)];
+      auto& g = geo[weld[v]];
       for (int c = 0; c < 3; ++c) g[c] += n[c];
     }
   }
@@ -236,8 +244,7 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDire
   for (size_t v = 0; v < nv; ++v) {
     double n[3] = {mesh.normals[3 * v], mesh.normals[3 * v + 1], mesh.normals[3 * v + 2]};
     const double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    std::array<double, 3> g{0, 0, 0};
-    if (auto it = geo.find(key(uint32_t(v))); it != geo.end()) g = it->second;
+    std::array<double, 3> g = geo[weld[v]];
     double glen = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
     if (!(nlen > 0)) {
       ++s.verticesWithoutNormal;

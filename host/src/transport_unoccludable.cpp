@@ -35,16 +35,21 @@ std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const
       }
       if (!(h > 0)) continue;
       const double thr = np + 0.5 * h;
+      // Depth first, the child reaching higher along n first: an occludable vertex (most
+      // of them) meets a corner above the threshold within about one descent.
+      auto top = [&](int i) {
+        const Bvh::Node& b = bvh.nodes[size_t(i)];
+        double t = 0;
+        for (int c = 0; c < 3; ++c) t += std::max(n[c] * b.bmin[c], n[c] * b.bmax[c]);
+        return t;
+      };
       bool blocked = false;
-      if (!bvh.nodes.empty()) stack.assign(1, 0);
-      else stack.clear();
+      stack.clear();
+      if (!bvh.nodes.empty() && top(0) > thr) stack.push_back(0);
       while (!stack.empty() && !blocked) {
-        const Bvh::Node& node = bvh.nodes[size_t(stack.back())];
         const int idx = stack.back();
+        const Bvh::Node& node = bvh.nodes[size_t(idx)];
         stack.pop_back();
-        double top = 0;
-        for (int c = 0; c < 3; ++c) top += std::max(n[c] * node.bmin[c], n[c] * node.bmax[c]);
-        if (top <= thr) continue;
         if (node.count > 0) {
           for (int i = 0; i < node.count && !blocked; ++i) {
             const uint32_t t = bvh.triangles[size_t(node.offset) + i];
@@ -55,8 +60,11 @@ std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const
             }
           }
         } else {
-          stack.push_back(node.offset);
-          stack.push_back(idx + 1);
+          const int a = idx + 1, b = node.offset;
+          const double ta = top(a), tb = top(b);
+          const bool aFirst = ta >= tb;
+          if ((aFirst ? tb : ta) > thr) stack.push_back(aFirst ? b : a);
+          if ((aFirst ? ta : tb) > thr) stack.push_back(aFirst ? a : b);
         }
       }
       out[v] = blocked ? 0 : 1;

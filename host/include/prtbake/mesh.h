@@ -28,6 +28,7 @@ struct Mesh {
   std::vector<GltfPrimitive> gltfPrimitives;
   std::string sourcePath;  // the file it was loaded from ("" for procedural meshes)
   std::vector<std::string> inputFiles;  // every file read: the mesh and its external buffers/images
+  std::string sourceSha256;  // SHA-256 (hex) of sourcePath's bytes as parsed, where the loader took it ("" if not)
   enum class Format { None, Gltf, Obj } format = Format::None;
 
   size_t vertexCount() const { return positions.size() / 3; }
