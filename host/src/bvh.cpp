@@ -74,36 +74,42 @@ struct Builder {
     };
     const size_t count = end - begin;
     if (count <= 1 || level >= kBvhMaxDepth) return makeLeaf();
-    // Binned SAH over the axis of largest centroid extent (all three tried).
+    // Binned SAH, all three axes binned in one pass over the range.
     double bestCost = INFINITY;
     int bestAxis = -1, bestSplit = 0;
-    for (int axis = 0; axis < 3; ++axis) {
-      const float lo = cbounds.lo[axis], hi = cbounds.hi[axis];
-      if (!(hi > lo)) continue;
-      Box binBox[kBvhBins];
-      size_t binCount[kBvhBins] = {};
-      const double scale = kBvhBins / double(hi - lo);
-      for (size_t i = begin; i < end; ++i) {
-        const int b = std::min(kBvhBins - 1, int((prims[i].centroid[axis] - lo) * scale));
-        binBox[b].grow(prims[i].box);
-        ++binCount[b];
+    Box binBox[3][kBvhBins];
+    size_t binCount[3][kBvhBins] = {};
+    double scale[3];
+    for (int axis = 0; axis < 3; ++axis)
+      scale[axis] = cbounds.hi[axis] > cbounds.lo[axis] ? kBvhBins / double(cbounds.hi[axis] - cbounds.lo[axis]) : 0.0;
+    for (size_t i = begin; i < end; ++i) {
+      const Prim& pr = prims[i];
+      for (int axis = 0; axis < 3; ++axis) {
+        const int b = std::min(kBvhBins - 1, int((pr.centroid[axis] - cbounds.lo[axis]) * scale[axis]));
+        binBox[axis][b].grow(pr.box);
+        ++binCount[axis][b];
       }
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!(cbounds.hi[axis] > cbounds.lo[axis])) continue;
       double rightArea[kBvhBins];
       size_t rightCount[kBvhBins];
       Box acc;
       size_t cnt = 0;
       for (int b = kBvhBins - 1; b > 0; --b) {
-        acc.grow(binBox[b]);
-        cnt += binCount[b];
-        rightArea[b] = acc.area();
+        const bool same = binCount[axis][b] == 0 && b < kBvhBins - 1;  // an empty bin changes nothing
+        if (!same) acc.grow(binBox[axis][b]);
+        cnt += binCount[axis][b];
+        rightArea[b] = same ? rightArea[b + 1] : acc.area();
         rightCount[b] = cnt;
       }
       Box left;
       size_t leftCount = 0;
       for (int b = 0; b < kBvhBins - 1; ++b) {
-        left.grow(binBox[b]);
-        leftCount += binCount[b];
-        if (leftCount == 0 || rightCount[b + 1] == 0) continue;
+        left.grow(binBox[axis][b]);
+        leftCount += binCount[axis][b];
+        // A split after an empty bin costs what the split before it did (kept: the first wins).
+        if (leftCount == 0 || rightCount[b + 1] == 0 || (b > 0 && binCount[axis][b] == 0)) continue;
         const double cost = left.area() * blocks(leftCount) + rightArea[b + 1] * blocks(rightCount[b + 1]);
         if (cost < bestCost) bestCost = cost, bestAxis = axis, bestSplit = b;
       }
