@@ -3,7 +3,9 @@
 # transport benchmark (102,400 vertices, 204,800 triangles), shadowed, order 3, 1024 cosine
 # rays per vertex. Whole commands (wall and CPU time from /usr/bin/time), the coefficients
 # compared (mean and max |ΔT_00|), prtbake rerun for bit-identity, and the cost of an
-# interreflection bounce against the direct term. Writes bench/results/embree.md.
+# interreflection bounce against the direct term. RUNS alternating pairs (default 5: this
+# machine's speed wanders by 15-25 %, so each pair shares its conditions), summarised as
+# the median of each and the per-pair speed ratios. Writes bench/results/embree.md.
 #   bash bench/bench_embree.sh [BUILD]     (BUILD: default build/, with bench_embree built)
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -23,7 +25,9 @@ timed() {  # label, command...: prints "label wall_s cpu_s peak_MiB"
 # Warm-up: program caches and the file cache.
 "$PRTBAKE" transport "$work/knot.obj" -o "$work/warm.npy" --samples 64 --quiet
 results=()
-for run in 1 2 3; do
+RUNS=${RUNS:-5}
+[ "$RUNS" -ge 3 ] || { echo "bench_embree.sh: RUNS must be at least 3" >&2; exit 2; }
+for run in $(seq "$RUNS"); do
   results+=("$(timed "prtbake#$run" "$PRTBAKE" transport "$work/knot.obj" -o "$work/p$run.npy" --samples 1024 --quiet)")
   results+=("$(timed "embree#$run" "$EMBREE" "$work/knot.obj" "$work/e$run.npy" --samples 1024)")
 done
@@ -49,11 +53,19 @@ PY
 {
   echo "# Transport beside Embree 3: the knot, shadowed, order 3, 1024 rays per vertex"
   echo
-  echo "bench/bench_embree.sh, $(date -u +%Y-%m-%d), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)); Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo '?') (rtcOccluded16, one thread per core), prtbake on PoCL's CPU device; warm program caches; three alternating runs of each."
+  echo "bench/bench_embree.sh, $(date -u +%Y-%m-%d), $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)); Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo '?') (rtcOccluded16, one thread per core), prtbake on PoCL's CPU device; warm program caches; $RUNS alternating runs of each."
   echo
   echo "| run | wall [s] | CPU [s] | peak [MiB] |"
   echo "|---|---|---|---|"
   for r in "${results[@]}"; do set -- $r; echo "| $1 | $2 | $3 | $4 |"; done
+  echo
+  printf '%s\n' "${results[@]}" | awk '
+    $1 ~ /^prtbake#/ { p[++np] = $2 } $1 ~ /^embree#/ { e[++ne] = $2 }
+    function median(a, n,   i, j, t) { for (i = 1; i <= n; ++i) for (j = i + 1; j <= n; ++j) if (a[j] < a[i]) { t = a[i]; a[i] = a[j]; a[j] = t } return n % 2 ? a[(n + 1) / 2] : (a[n / 2] + a[n / 2 + 1]) / 2 }
+    END {
+      r = ""; for (i = 1; i <= np; ++i) r = r sprintf("%s%.2f", i > 1 ? ", " : "", e[i] / p[i]);
+      mp = median(p, np); me = median(e, ne);
+      printf "Speed of prtbake against Embree (Embree wall / prtbake wall): %.2fx median against median (%.2f s against %.2f s); per pair %s.\n", me / mp, mp, me, r }'
   echo
   echo "Coefficients: $compare."
   echo

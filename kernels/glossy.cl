@@ -59,13 +59,18 @@ inline float glossy_hsum(float16 a) {
 // dirsSoA:  4 rows of paddedCount floats: local x, y, z and the weight w (0 in padding lanes)
 // nodes, tris, tMax: the BVH and the ray length
 // out:      V × GRAM_COUNT, the lower triangle of G, row by row
+// blocked, maskWords: when maskWords > 0 (= paddedCount / 16), V × maskWords words, one per
+//           packet, with bit j set where the packet's ray j is blocked (for glossy_bounce,
+//           which traces the same rays), written for every vertex
 __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float4* origins,
                           __global const float4* frames, __global const float* dirsSoA,
                           __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
-                          __global float* out, int paddedCount) {
+                          __global float* out, int paddedCount, __global ushort* blocked, int maskWords) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
+  // No normal or no triangle in reach: no ray is blocked (the words the loop below skips).
+  for (int w = 0; w < maskWords; ++w) blocked[(size_t)vi * maskWords + w] = 0;
   float16 acc[GRAM_COUNT];
   for (int k = 0; k < GRAM_COUNT; ++k) acc[k] = (float16)(0.0f);
   const float3 t = frame[0].xyz, b = frame[1].xyz, n = frame[2].xyz;
@@ -87,7 +92,11 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
       const float16 dz = t.z * lx + b.z * ly + n.z * lz;
       int16 live = (lane + s) < sampleCount;
 #if VISIBILITY
-      if (trace) live &= ~bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
+      if (trace) {
+        const int16 hit = bvh_packet_occluded(nodes, tris, o, dx, dy, dz, tMax, live, &front);
+        live &= ~hit;
+        if (maskWords > 0) blocked[(size_t)vi * maskWords + s / 16] = (ushort)pk_bits(hit);
+      }
 #endif
       float16 y[SH_COUNT];
       sh_eval(SH_ORDER, dx, dy, dz, y);
@@ -108,12 +117,14 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
 // diffuse: V × diffuseChannels × IN_COUNT, the diffuse transport T at every vertex
 // channel: 0, 1, 2 (albedo channel; T's channel when diffuseChannels = 3)
 // out:     V × OUT_COUNT × IN_COUNT, Σ_s w_s Y_i(ω_s) ρ_c(q_s) T_j(q_s)
+// blocked, maskWords: when maskWords > 0, glossy_gram's mask of these same rays: the rays it
+//          did not find blocked hit nothing and are not traced
 __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const float4* origins,
                             __global const float4* frames, __global const float* dirsSoA,
                             __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                             __global const int4* indices, __global const float4* albedo,
                             __global const float* diffuse, int diffuseChannels, int channel,
-                            __global float* out, int paddedCount) {
+                            __global float* out, int paddedCount, __global const ushort* blocked, int maskWords) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
@@ -135,7 +146,11 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
       const float16 dx = t.x * lx + b.x * ly + n.x * lz;
       const float16 dy = t.y * lx + b.y * ly + n.y * lz;
       const float16 dz = t.z * lx + b.z * ly + n.z * lz;
-      const int16 live = (lane + s) < sampleCount;
+      int16 live = (lane + s) < sampleCount;
+      if (maskWords > 0) {  // only the rays glossy_gram found blocked can hit a surface
+        live &= pk_lanes(blocked[(size_t)vi * maskWords + s / 16]);
+        if (!pk_any(live)) continue;
+      }
       int16 hitTri;
       float16 hitU, hitV;
       bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);

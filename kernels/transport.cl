@@ -171,15 +171,6 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
   const floatP dy = t.y * lx + b.y * ly + n.y * lz;                            \
   const floatP dz = t.z * lx + b.z * ly + n.z * lz
 
-// The lanes of a packet whose bit is set in `bits` (−1), the others 0.
-inline intP pk_lanes(int bits) {
-#if BVH_PACKET == 16
-  return ((intP)(bits) & (intP)(1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384, 32768)) != 0;
-#else
-  return ((intP)(bits) & (intP)(1, 2, 4, 8, 16, 32, 64, 128)) != 0;
-#endif
-}
-
 // Packet form of transport_direct: the N samples of a vertex go through the BVH
 // BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
 // dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).

@@ -3,6 +3,7 @@
 #include "prtbake/glossy.h"
 
 #include <algorithm>
+#include <bitset>
 #include <chrono>
 #include <cmath>
 
@@ -248,6 +249,7 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
 
   const std::string opts = detail::glossyOptions(o.orderOut, o.orderIn, visibility);
   cl::Kernel gramK = rt.kernel("glossy.cl", "glossy_gram", opts);
+  const cl::Buffer noMask = rt.upload(std::vector<uint16_t>(8, 0));  // bound when no mask is kept
   cl::Kernel bounceK;
   cl::Buffer indicesBuf, albedoBuf, diffuseBuf;
   if (bounce) {
@@ -283,7 +285,14 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
     gram.assign(nb * gramCount, 0.0);
     cl::Buffer gramOut(rt.context(), CL_MEM_WRITE_ONLY, nb * gramCount * 4);
     part.resize(nb * gramCount);
+    // With a bounce to follow, the direct kernel keeps a bit per ray: blocked or not. The
+    // bounce traces the same rays, and only a blocked one can hit a surface.
+    const bool keepMask = bounce && visibility;
+    std::vector<cl::Buffer> masks;
+    uint64_t blockedRays = 0;
     for (const DirectionChunk& c : chunks) {
+      const int maskWords = keepMask ? c.padded / 16 : 0;
+      masks.push_back(keepMask ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, nb * size_t(maskWords) * 2) : noMask);
       int a = 0;
       gramK.setArg(a++, int(nb));
       gramK.setArg(a++, c.count);
@@ -295,8 +304,15 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
       gramK.setArg(a++, setup.tMax);
       gramK.setArg(a++, gramOut);
       gramK.setArg(a++, c.padded);
+      gramK.setArg(a++, masks.back());
+      gramK.setArg(a++, maskWords);
       rt.queue().enqueueNDRangeKernel(gramK, cl::NullRange, global, local);
       rt.queue().enqueueReadBuffer(gramOut, CL_TRUE, 0, part.size() * 4, part.data());
+      if (keepMask) {
+        std::vector<uint16_t> bits(nb * size_t(maskWords));
+        rt.queue().enqueueReadBuffer(masks.back(), CL_TRUE, 0, bits.size() * 2, bits.data());
+        for (uint16_t w : bits) blockedRays += uint64_t(std::bitset<16>(w).count());
+      }
       for (size_t i = 0; i < part.size(); ++i) gram[i] += part[i];
       if (visibility) st.rays += uint64_t(traced) * uint64_t(c.count);
     }
@@ -306,7 +322,8 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
       cl::Buffer bounceOut(rt.context(), CL_MEM_WRITE_ONLY, nb * nbc * 4);
       part.resize(nb * nbc);
       for (int c = 0; c < ch; ++c)
-        for (const DirectionChunk& dc : chunks) {
+        for (size_t ci = 0; ci < chunks.size(); ++ci) {
+          const DirectionChunk& dc = chunks[ci];
           int a = 0;
           bounceK.setArg(a++, int(nb));
           bounceK.setArg(a++, dc.count);
@@ -323,12 +340,14 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
           bounceK.setArg(a++, c);
           bounceK.setArg(a++, bounceOut);
           bounceK.setArg(a++, dc.padded);
+          bounceK.setArg(a++, masks[ci]);
+          bounceK.setArg(a++, keepMask ? dc.padded / 16 : 0);
           rt.queue().enqueueNDRangeKernel(bounceK, cl::NullRange, global, local);
           rt.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part.size() * 4, part.data());
           for (size_t i = 0; i < nb; ++i)
             for (size_t k = 0; k < nbc; ++k) bounceSums[(i * ch + c) * nbc + k] += part[i * nbc + k];
-          st.rays += uint64_t(traced) * uint64_t(dc.count);
         }
+      st.rays += uint64_t(ch) * blockedRays;  // the bounce traces the blocked rays only
     }
     values.resize(nb * perVertex);
     for (size_t i = 0; i < nb; ++i) {
