@@ -119,12 +119,17 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
 // out:     V × OUT_COUNT × IN_COUNT, Σ_s w_s Y_i(ω_s) ρ_c(q_s) T_j(q_s)
 // blocked, maskWords: when maskWords > 0, glossy_gram's mask of these same rays: the rays it
 //          did not find blocked hit nothing and are not traced
+// hits, hitStart, chunks, chunk, hitMode (with a mask): 0, trace; 1, trace and write every
+//          traced ray's hit (triangle id as int bits, or −1, u, v: 3 floats) in lane order
+//          from hits + 3 · hitStart[vertex · chunks + chunk]; 2, read those hits instead of
+//          tracing (the other colour channels: the same rays, so the same hits)
 __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const float4* origins,
                             __global const float4* frames, __global const float* dirsSoA,
                             __global const Bvh4Node* nodes, __global const float4* tris, float tMax,
                             __global const int4* indices, __global const float4* albedo,
                             __global const float* diffuse, int diffuseChannels, int channel,
-                            __global float* out, int paddedCount, __global const ushort* blocked, int maskWords) {
+                            __global float* out, int paddedCount, __global const ushort* blocked, int maskWords,
+                            __global float* hits, __global const int* hitStart, int chunks, int chunk, int hitMode) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
@@ -137,7 +142,8 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
     const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     const int tc = diffuseChannels == 3 ? channel : 0;
     PkFrontier front;
-    pk_frontier(nodes, tris, o, n, tMax, &front);
+    if (hitMode != 2) pk_frontier(nodes, tris, o, n, tMax, &front);
+    __global float* kept = hitMode != 0 ? hits + 3 * (size_t)hitStart[(size_t)vi * chunks + chunk] : hits;
     for (int s = 0; s < sampleCount; s += 16) {
       const float16 lx = vload16(0, dirsSoA + s);
       const float16 ly = vload16(0, dirsSoA + paddedCount + s);
@@ -151,9 +157,19 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
         live &= pk_lanes(blocked[(size_t)vi * maskWords + s / 16]);
         if (!pk_any(live)) continue;
       }
-      int16 hitTri;
-      float16 hitU, hitV;
-      bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);
+      int16 hitTri = (int16)(-1);
+      float16 hitU = (float16)(0.0f), hitV = (float16)(0.0f);
+      if (hitMode == 2) {  // the hits the first channel's launch kept, in the same order
+        for (int j = 0; j < 16; ++j)
+          if (((int*)&live)[j])
+            ((int*)&hitTri)[j] = as_int(kept[0]), ((float*)&hitU)[j] = kept[1], ((float*)&hitV)[j] = kept[2], kept += 3;
+      } else {
+        bvh_packet_closest(nodes, tris, o, dx, dy, dz, tMax, live, &front, &hitTri, &hitU, &hitV);
+        if (hitMode == 1)
+          for (int j = 0; j < 16; ++j)
+            if (((int*)&live)[j])
+              kept[0] = as_float(((int*)&hitTri)[j]), kept[1] = ((float*)&hitU)[j], kept[2] = ((float*)&hitV)[j], kept += 3;
+      }
       if (!pk_any(hitTri >= 0)) continue;
       // g_j = ρ_c(q) T_j(q) lane by lane (a gather), zero where the ray escaped.
       float16 g[IN_COUNT];

@@ -290,6 +290,7 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
     const bool keepMask = bounce && visibility;
     std::vector<cl::Buffer> masks;
     uint64_t blockedRays = 0;
+    std::vector<int32_t> hitStart(keepMask ? nb * chunks.size() : 0);  // blocked rays per (vertex, chunk), then their offsets
     for (const DirectionChunk& c : chunks) {
       const int maskWords = keepMask ? c.padded / 16 : 0;
       masks.push_back(keepMask ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, nb * size_t(maskWords) * 2) : noMask);
@@ -311,11 +312,23 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
       if (keepMask) {
         std::vector<uint16_t> bits(nb * size_t(maskWords));
         rt.queue().enqueueReadBuffer(masks.back(), CL_TRUE, 0, bits.size() * 2, bits.data());
-        for (uint16_t w : bits) blockedRays += uint64_t(std::bitset<16>(w).count());
+        for (size_t i = 0; i < nb; ++i)
+          for (int w = 0; w < maskWords; ++w)
+            hitStart[i * chunks.size() + masks.size() - 1] += int32_t(std::bitset<16>(bits[i * maskWords + w]).count());
       }
       for (size_t i = 0; i < part.size(); ++i) gram[i] += part[i];
       if (visibility) st.rays += uint64_t(traced) * uint64_t(c.count);
     }
+    // The other colour channels trace the same rays: the first keeps their hits (12 bytes
+    // a blocked ray, at most detail::kKeptHitBytes) and the others read them.
+    for (int32_t& h : hitStart) {
+      const int32_t n = h;
+      h = int32_t(blockedRays);
+      blockedRays += uint64_t(n);
+    }
+    const bool keepHits = keepMask && ch > 1 && blockedRays > 0 && double(blockedRays) * 12 <= detail::kKeptHitBytes;
+    const cl::Buffer hits = keepHits ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, blockedRays * 12) : noMask;
+    const cl::Buffer hitStartBuf = keepHits ? rt.upload(hitStart) : noMask;
     if (bounce) {
       const size_t nbc = size_t(no2) * ni2;
       bounceSums.assign(nb * ch * nbc, 0.0);
@@ -342,12 +355,17 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
           bounceK.setArg(a++, dc.padded);
           bounceK.setArg(a++, masks[ci]);
           bounceK.setArg(a++, keepMask ? dc.padded / 16 : 0);
+          bounceK.setArg(a++, hits);
+          bounceK.setArg(a++, hitStartBuf);
+          bounceK.setArg(a++, int(chunks.size()));
+          bounceK.setArg(a++, int(ci));
+          bounceK.setArg(a++, keepHits ? (c == 0 ? 1 : 2) : 0);
           rt.queue().enqueueNDRangeKernel(bounceK, cl::NullRange, global, local);
           rt.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part.size() * 4, part.data());
           for (size_t i = 0; i < nb; ++i)
             for (size_t k = 0; k < nbc; ++k) bounceSums[(i * ch + c) * nbc + k] += part[i * nbc + k];
         }
-      st.rays += uint64_t(ch) * blockedRays;  // the bounce traces the blocked rays only
+      st.rays += uint64_t(keepHits ? 1 : ch) * blockedRays;  // the bounce traces the blocked rays only
     }
     values.resize(nb * perVertex);
     for (size_t i = 0; i < nb; ++i) {

@@ -28,9 +28,6 @@ constexpr size_t kLocalSize = 16;
 // The most device memory the direct term's blocked-ray masks may take (a bit per ray:
 // 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
 constexpr double kMaskBytes = 256.0 * 1024 * 1024;
-// The most the first bounce's hits may take (12 bytes per blocked ray: 44 million); beyond
-// it every bounce traces its rays.
-constexpr double kHitBytes = 512.0 * 1024 * 1024;
 
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
@@ -109,7 +106,7 @@ class Tracer {
       blockedRays_ = 0;
       for (uint32_t b : chunkBlocked) blockedRays_ += b;
       hitsWritten_ = false;
-      if (keep && double(blockedRays_) * 12 <= kHitBytes) {
+      if (keep && double(blockedRays_) * 12 <= detail::kKeptHitBytes) {
         // Where each vertex's hits of each launch go: vertex-major, so that a vertex's hits
         // lie together.
         const size_t chunks = chunkBlocked.size() / size_t(nv);

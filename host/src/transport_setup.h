@@ -29,6 +29,11 @@ struct RaySetup {
 // keep it below the transport's error at 2^24 samples. Default counts take one launch.
 constexpr int kTransportSampleChunk = 1024;
 
+// The most the kept hits of blocked rays may take (12 bytes each: 44 million), for the
+// later bounces (transport) or the other colour channels (glossy) to read instead of
+// tracing the same rays again; beyond it they trace.
+constexpr double kKeptHitBytes = 512.0 * 1024 * 1024;
+
 // Directions first … first + count − 1 of the `samples`-point set of sampleDirectionsLocal,
 // Morton-ordered among themselves; count × 4 floats. The kernels take the set in such
 // chunks, so that no launch sums more than a chunk in float.
