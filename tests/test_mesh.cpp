@@ -248,39 +248,33 @@ TEST_CASE("Mesh loaders reject bad input with the file name", "[mesh]") {
 }
 
 TEST_CASE("OBJ loader: the number check judges each token as strtod and strtoll read it", "[mesh]") {
-  // Coordinates: finite ones (as doubles) load (plain decimals are judged from their digit
-  // counts, the rest by strtod), non-finite ones are refused naming the line.
   const std::string dir = test::tempDir("mesh-obj-numbers");
+  // Each token placed in `before` + token + `after`: it loads when `ok`, else fails with `what`.
+  auto judge = [&](const std::vector<std::pair<std::string, bool>>& tokens, const std::string& before,
+                   const std::string& after, const std::string& what) {
+    for (const auto& [token, ok] : tokens) {
+      INFO(token);
+      const std::string path = dir + "/t.obj";
+      writeText(path, before + token + after);
+      if (ok) {
+        CHECK_NOTHROW(loadMesh(path));
+      } else {
+        expectInputError(path, what);
+      }
+    }
+  };
+  // Coordinates: finite ones (as doubles) load (plain decimals are judged from their digit
+  // counts, the rest by strtod), non-finite ones are refused naming the line. In a texture
+  // coordinate: read, but unused, so a float overflow there is harmless.
   const std::string digits200(200, '9');
-  const std::vector<std::pair<std::string, bool>> coords = {
-      {"1e99", true},   {"-1.5E+38", true}, {"+.5", true},       {"7.", true},   {"1e-999", true},
-      {"1e999", false}, {"-1e309", false},  {"0x1p99999", false}, {"inf", false}, {"-NaN", false},
-      {"Infinity", false}, {digits200 + "e99", true}, {digits200 + "9e99", true}, {"1" + digits200 + "e200", false}};
-  for (const auto& [token, finite] : coords) {
-    INFO(token);
-    const std::string path = dir + "/c.obj";
-    // In a texture coordinate (read, but unused: a float overflow there is harmless).
-    writeText(path, "v 0 0 0\nv 1 0 0\nv\t0 1 0\r\nvt 0 " + token + "\r\nf 1/1 2/1 3/1\n");
-    if (finite) {
-      CHECK_NOTHROW(loadMesh(path));
-    } else {
-      expectInputError(path, "line 4: non-finite coordinate");
-    }
-  }
+  judge({{"1e99", true}, {"-1.5E+38", true}, {"+.5", true}, {"7.", true}, {"1e-999", true}, {"1e999", false},
+         {"-1e309", false}, {"0x1p99999", false}, {"inf", false}, {"-NaN", false}, {"Infinity", false},
+         {digits200 + "e99", true}, {digits200 + "9e99", true}, {"1" + digits200 + "e200", false}},
+        "v 0 0 0\nv 1 0 0\nv\t0 1 0\r\nvt 0 ", "\r\nf 1/1 2/1 3/1\n", "line 4: non-finite coordinate");
   // Face indices: out of the int range is refused; in range (through any v/vt/vn form) is not.
-  const std::vector<std::pair<std::string, bool>> faces = {
-      {"3", true}, {"3/1/1", true}, {"-1", true}, {"000000003", true}, {"0000000000003", true},
-      {"2147483648", false}, {"3//99999999999", false}, {"-2147483648", false}};
-  for (const auto& [token, fits] : faces) {
-    INFO(token);
-    const std::string path = dir + "/f.obj";
-    writeText(path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 " + token + "\n");
-    if (fits) {
-      CHECK_NOTHROW(loadMesh(path));
-    } else {
-      expectInputError(path, "line 6: face index out of range");
-    }
-  }
+  judge({{"3", true}, {"3/1/1", true}, {"-1", true}, {"000000003", true}, {"0000000000003", true},
+         {"2147483648", false}, {"3//99999999999", false}, {"-2147483648", false}},
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 ", "\n", "line 6: face index out of range");
 }
 
 TEST_CASE("Mesh loaders reject the external bad meshes with the file name", "[mesh][data]") {
