@@ -290,7 +290,7 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
     const bool keepMask = bounce && visibility;
     std::vector<cl::Buffer> masks;
     uint64_t blockedRays = 0;
-    std::vector<int32_t> hitStart(keepMask ? nb * chunks.size() : 0);  // blocked rays per (vertex, chunk), then their offsets
+    std::vector<uint64_t> hitStart(keepMask ? nb * chunks.size() : 0);  // blocked rays per (vertex, chunk), then their offsets
     for (const DirectionChunk& c : chunks) {
       const int maskWords = keepMask ? c.padded / 16 : 0;
       masks.push_back(keepMask ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, nb * size_t(maskWords) * 2) : noMask);
@@ -314,21 +314,22 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
         rt.queue().enqueueReadBuffer(masks.back(), CL_TRUE, 0, bits.size() * 2, bits.data());
         for (size_t i = 0; i < nb; ++i)
           for (int w = 0; w < maskWords; ++w)
-            hitStart[i * chunks.size() + masks.size() - 1] += int32_t(std::bitset<16>(bits[i * maskWords + w]).count());
+            hitStart[i * chunks.size() + masks.size() - 1] += std::bitset<16>(bits[i * maskWords + w]).count();
       }
       for (size_t i = 0; i < part.size(); ++i) gram[i] += part[i];
       if (visibility) st.rays += uint64_t(traced) * uint64_t(c.count);
     }
     // The other colour channels trace the same rays: the first keeps their hits (12 bytes
     // a blocked ray, at most detail::kKeptHitBytes) and the others read them.
-    for (int32_t& h : hitStart) {
-      const int32_t n = h;
-      h = int32_t(blockedRays);
-      blockedRays += uint64_t(n);
+    for (uint64_t& h : hitStart) {
+      const uint64_t n = h;
+      h = blockedRays;
+      blockedRays += n;
     }
     const bool keepHits = keepMask && ch > 1 && blockedRays > 0 && double(blockedRays) * 12 <= detail::kKeptHitBytes;
     const cl::Buffer hits = keepHits ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, blockedRays * 12) : noMask;
-    const cl::Buffer hitStartBuf = keepHits ? rt.upload(hitStart) : noMask;
+    const cl::Buffer hitStartBuf =  // offsets below 44 million when the hits are kept: int
+        keepHits ? rt.upload(std::vector<int32_t>(hitStart.begin(), hitStart.end())) : noMask;
     if (bounce) {
       const size_t nbc = size_t(no2) * ni2;
       bounceSums.assign(nb * ch * nbc, 0.0);
