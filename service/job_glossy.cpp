@@ -149,7 +149,7 @@ ExecResult runGlossy(const Job& job, ExecContext& ctx) {
   ExecResult result;
   result.report = statsReport(st);
   writeExtras(job, ctx.outputPaths, mesh, o, st, values, result.report);
-  result.inputFiles = filesRead(job, mesh.inputFiles);
+  meshInputs(job, mesh, result);
   return result;
 }
 
@@ -165,7 +165,7 @@ ExecResult runGlossyPart(const Job& job, ExecContext& ctx) {
   const std::string path = ctx.output("npy");
   const GlossyStats st = bake(ctx.runtime(), mesh, job.params, o, path, nullptr);
   ExecResult result;
-  result.inputFiles = filesRead(job, mesh.inputFiles);
+  meshInputs(job, mesh, result);
   result.report = statsReport(st);
   result.report["shard"] = {{"index", index}, {"count", count}};
   result.report["first_vertex"] = first;

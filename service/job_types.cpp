@@ -188,9 +188,7 @@ ExecResult runTransport(const Job& job, ExecContext& ctx) {
                      {"Source", job.input},
                      {"Environment", p["preview_env"].get<std::string>()}});
   ExecResult result;
-  std::vector<std::string> read = mesh.inputFiles;
-  read.insert(read.end(), previewFiles.begin(), previewFiles.end());
-  result.inputFiles = filesRead(job, read);
+  meshInputs(job, mesh, result, previewFiles);
   result.report = {{"vertices", r.vertexCount},
                    {"channels", r.channels},
                    {"samples", r.samples},

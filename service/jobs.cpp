@@ -306,6 +306,14 @@ std::vector<std::string> filesRead(const Job& job, const std::vector<std::string
   return files;
 }
 
+void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also) {
+  std::vector<std::string> read = mesh.inputFiles;
+  read.insert(read.end(), also.begin(), also.end());
+  result.inputFiles = filesRead(job, read);
+  if (!mesh.sourceSha256.empty())
+    result.inputHashes[fs::absolute(mesh.sourcePath).lexically_normal().string()] = mesh.sourceSha256;
+}
+
 const JobType* findJobType(const std::string& name) {
   for (const auto& t : jobTypes())
     if (t.name == name) return &t;

@@ -50,6 +50,9 @@ struct ExecContext {
 
 struct ExecResult {
   std::vector<std::string> inputFiles;  // every file the product read (for the manifest)
+  // SHA-256 of inputs as the product parsed them, where the loader took it (absolute
+  // path → hex): the manifest then vouches for the bytes the outputs came from.
+  std::map<std::string, std::string> inputHashes;
   json report = json::object();         // sample counts, error estimates, product timings
 };
 
@@ -130,6 +133,9 @@ JobFile loadJobFile(const std::string& path, const std::string& baseDir = "");
 // Every file a job read, absolute: the product's list, or else the input itself
 // (every regular file in it when it is a directory).
 std::vector<std::string> filesRead(const Job& job, const std::vector<std::string>& reported);
+// A mesh product's inputs: the mesh's files and `also` (filesRead), and the hash the mesh
+// loader took of what it parsed.
+void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also = {});
 
 // Marks jobs (across all files) that write a file another job writes, or whose
 // manifest would collide with another job's file. The first writer keeps it.

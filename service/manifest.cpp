@@ -31,9 +31,12 @@ long long fileSize(const std::string& path) {
 
 }  // namespace
 
-std::vector<InputHash> hashInputs(const std::vector<std::string>& files) {
+std::vector<InputHash> hashInputs(const std::vector<std::string>& files, const std::map<std::string, std::string>& known) {
   std::vector<InputHash> out;
-  for (const auto& f : files) out.push_back({f, sha256File(f)});
+  for (const auto& f : files) {
+    const auto it = known.find(f);
+    out.push_back({f, it != known.end() ? it->second : sha256File(f)});
+  }
   return out;
 }
 

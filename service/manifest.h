@@ -22,8 +22,10 @@ struct InputHash {
   std::string sha256;
 };
 
-// SHA-256 of each file (throws InputError naming a file that cannot be read).
-std::vector<InputHash> hashInputs(const std::vector<std::string>& files);
+// SHA-256 of each file (throws InputError naming a file that cannot be read), taken
+// from `known` where it holds the file.
+std::vector<InputHash> hashInputs(const std::vector<std::string>& files,
+                                  const std::map<std::string, std::string>& known = {});
 
 // The manifest of a job whose outputs are now committed.
 json makeManifest(const Job& job, const std::vector<InputHash>& inputs, const std::string& device,

@@ -311,7 +311,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
     const ExecResult result = job.type->execute(job, ctx);
     const double runSeconds = secondsSince(tRun);
     staged.checkAllWritten();
-    const auto inputs = hashInputs(filesRead(job, result.inputFiles));
+    const auto inputs = hashInputs(filesRead(job, result.inputFiles), result.inputHashes);
 
     // Commit: the old manifest goes first (so it never vouches for a mixed set),
     // then the outputs as a set, then the new manifest, last.

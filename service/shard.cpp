@@ -36,7 +36,7 @@ ExecResult runTransportPart(const Job& job, ExecContext& ctx) {
   const std::string bytes = transportNpyBytes(r);
   writeFileAtomic(ctx.output("npy"), bytes);
   ExecResult result;
-  result.inputFiles = filesRead(job, mesh.inputFiles);
+  meshInputs(job, mesh, result);
   result.report = {{"shard", {{"index", index}, {"count", count}}},
                    {"first_vertex", first},
                    {"vertex_count", n},
