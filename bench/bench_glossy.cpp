@@ -4,6 +4,7 @@
 // Writes a bumpy sphere of about 50,000 vertices (makeBumpySphere(100000): 50,562 vertices,
 // 100,488 triangles) as OBJ, then times, with /usr/bin/time -v (wall, peak RSS):
 //   prtbake transport bumpy.obj -o m.npy --transfer matrix --order 5 --samples 1024
+//   prtbake transport bumpy.obj -o mi.npy --transfer matrix --order 5 --samples 1024 --mode interreflected
 //   prtbake cpca m.npy -o c.npz --clusters 32 --vectors 8
 //   prtbake cpca m.npy -o c8.npz --clusters 1 --vectors 72 --weights int8
 // after one warm-up run of each (program caches warm). Prints one line per run and the
@@ -80,9 +81,12 @@ int main(int argc, char** argv) {
   std::printf("mesh: %zu vertices, %zu triangles\n", m.vertexCount(), m.triangleCount());
   const std::string cli = PRTBAKE_CLI_PATH;
   const std::string bake = cli + " transport " + dir + "/bumpy.obj -o " + dir + "/m.npy --transfer matrix --order 5 --samples 1024";
+  const std::string bakeInter = cli + " transport " + dir + "/bumpy.obj -o " + dir +
+                                "/mi.npy --transfer matrix --order 5 --samples 1024 --mode interreflected";
   const std::string cpca = cli + " cpca " + dir + "/m.npy -o " + dir + "/c.npz --clusters 32 --vectors 8";
   const std::string cpca8 = cli + " cpca " + dir + "/m.npy -o " + dir + "/c8.npz --clusters 1 --vectors 72 --weights int8";
-  for (const auto& [name, cmd] : {std::pair{"bake", bake}, std::pair{"cpca", cpca}, std::pair{"cpca-int8", cpca8}}) {
+  for (const auto& [name, cmd] : {std::pair{"bake", bake}, std::pair{"bake-interreflected", bakeInter},
+                                  std::pair{"cpca", cpca}, std::pair{"cpca-int8", cpca8}}) {
     timed(cmd, dir);  // warm-up: program caches
     std::vector<double> wall, rss;
     for (int i = 0; i < repeats; ++i) {
