@@ -6,7 +6,6 @@
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
-#include "jobs.h"
 #include "glossy_cli.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
@@ -58,7 +57,7 @@ int previewEnv(const CommandLine& cl, const std::string& input, const std::strin
     EnvProjectOptions po;
     po.order = int(cl.getInt("order", 3, 1, kMaxShOrder));
     po.window = parseWindow(cl.get("window", "none"));
-    Runtime& rt = jobs::processRuntime(cl.device());
+    Runtime rt(cl.device());
     const EnvProjectResult r = projectEnvironment(rt, env, po);
     radiance = applyWindowAndQuantity(r.radiance, r.windowWeights, ShQuantity::Radiance);
     haveEnv = true;
@@ -161,7 +160,7 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
     background = loadEnvironment(bgPath, lo);
     o.background = &background;
   }
-  Runtime& rt = jobs::processRuntime(cl.device());
+  Runtime rt(cl.device());
   const MeshPreviewResult r = renderMeshPreview(rt, mesh, t, radiance, o);
   char light[160];
   std::snprintf(light, sizeof light, "lighting rotated by %g deg about +Y (right-handed)", o.lightRotationDeg);
@@ -190,7 +189,7 @@ int previewPrefilter(const CommandLine& cl, const std::string& input, const std:
   lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
   EnvMap env = loadEnvironment(input, lo);
   env.yawDegrees = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
-  Runtime& rt = jobs::processRuntime(cl.device());
+  Runtime rt(cl.device());
   const PrefilterResult r = prefilterEnvironment(rt, env, o);
   writePrefilterPreviewPng(output, rt, r, width, input);
   status(cl, "wrote " + output + " (" + std::to_string(r.levels.size()) + " levels of a " + toString(o.lobe) + " chain, " +

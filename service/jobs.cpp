@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <mutex>
 #include <sstream>
 
 #include "prtbake/atomic_file.h"
@@ -305,15 +304,6 @@ std::vector<std::string> filesRead(const Job& job, const std::vector<std::string
     if (e.is_regular_file()) files.push_back(e.path().string());
   std::sort(files.begin(), files.end());
   return files;
-}
-
-Runtime& processRuntime(const std::string& deviceSpec) {
-  static std::mutex mutex;
-  static std::map<std::string, Runtime*> runtimes;  // reachable to the end, never deleted
-  std::lock_guard<std::mutex> lock(mutex);
-  Runtime*& rt = runtimes[deviceSpec];
-  if (!rt) rt = new Runtime(deviceSpec);
-  return *rt;
 }
 
 void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also) {

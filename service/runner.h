@@ -77,7 +77,7 @@ class Runner {
 
   RunOptions options_;
   Reporter& reporter_;
-  Runtime* runtime_ = nullptr;  // processRuntime's, once a job needs it
+  std::unique_ptr<Runtime> runtime_;
   double runtimeStartupSeconds_ = 0;
 };
 
