@@ -1,10 +1,10 @@
 // prtbake env: environment map → SH coefficients (JSON, GAMES202 light.txt).
 #include <algorithm>
 #include <chrono>
-#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
+#include "jobs.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
@@ -42,8 +42,7 @@ int runEnv(const CommandLine& cl) {
 
   nlohmann::json autoCurve;
   bool autoMet = true;
-  std::optional<Runtime> device;
-  auto runtime = [&]() -> Runtime& { return device ? *device : device.emplace(cl.device()); };
+  auto runtime = [&]() -> Runtime& { return jobs::processRuntime(cl.device()); };
   const auto t1 = std::chrono::steady_clock::now();
   // A lat-long OpenEXR file is decoded and projected in bands: "load" is then the host's
   // share of the two (decoding, checks, sums), the rest being the device's.

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "glossy_cli.h"
+#include "jobs.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
@@ -112,7 +113,7 @@ int runGlossyTransport(const CommandLine& cl) {
                  " triangles, transfer matrices " + std::to_string(o.orderOut * o.orderOut) + " x " +
                  std::to_string(o.orderIn * o.orderIn) + ", " + transportModeName(o.mode) + ", " +
                  std::to_string(o.samples) + " samples, " + mib(bytes) + " of float32 streamed to " + out);
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   const std::vector<double> b = brdf ? brdfMatrixLocal(brdfSpec, o.orderOut) : std::vector<double>{};
   NpyStreamWriter writer(out, glossyNpyShape(nv, channels, o.orderOut, o.orderIn), dtype);
   std::vector<float> kept, block;
@@ -219,7 +220,7 @@ int previewGlossyMesh(const CommandLine& cl, const std::string& input, const std
     background = loadEnvironment(cl.get("background"), lo);
     o.background = &background;
   }
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   const MeshPreviewResult r = renderGlossyPreview(rt, mesh, g, cpca ? &c : nullptr, radiance, lobe, go);
   char what[512];
   std::snprintf(what, sizeof what,

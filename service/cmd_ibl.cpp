@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
+#include "jobs.h"
 #include "prtbake/engine.h"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
@@ -28,7 +29,7 @@ int runIbl(const CommandLine& cl) {
   const double yaw = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
   EnvMap env = loadEnvironment(input, lo);
   env.yawDegrees = yaw;
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   std::string targets;
   for (EngineTarget t : o.targets) targets += std::string(targets.empty() ? "" : ",") + toString(t);
   nlohmann::json meta;

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "cli.h"
+#include "jobs.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
 #include "prtbake/runtime.h"
@@ -34,7 +35,7 @@ int runLut(const CommandLine& cl) {
   o.toleranceMaxSamples = int(cl.getInt("max-samples", kLutMaxSamples, -(1L << 30), 1L << 30));
   validateLutOptions(o);
 
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   const LutResult lut = computeLut(rt, o);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   writeLut(lut, out, cl.has("half"), seconds);

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
+#include "jobs.h"
 #include "prtbake/error.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/preview.h"
@@ -96,7 +97,7 @@ int runPrefilter(const CommandLine& cl) {
   EnvMap env = loadEnvironment(input, lo);
   env.yawDegrees = yaw;
   const double loadSeconds = secondsSince(t0);
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   const PrefilterResult r = prefilterEnvironment(rt, env, o);
   nlohmann::json meta;
   meta["parameters"] = {{"input", input},

@@ -7,6 +7,7 @@
 
 #include "cli.h"
 #include "glossy_cli.h"
+#include "jobs.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
@@ -57,7 +58,7 @@ int previewEnv(const CommandLine& cl, const std::string& input, const std::strin
     EnvProjectOptions po;
     po.order = int(cl.getInt("order", 3, 1, kMaxShOrder));
     po.window = parseWindow(cl.get("window", "none"));
-    Runtime rt(cl.device());
+    Runtime& rt = jobs::processRuntime(cl.device());
     const EnvProjectResult r = projectEnvironment(rt, env, po);
     radiance = applyWindowAndQuantity(r.radiance, r.windowWeights, ShQuantity::Radiance);
     haveEnv = true;
@@ -160,7 +161,7 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
     background = loadEnvironment(bgPath, lo);
     o.background = &background;
   }
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   const MeshPreviewResult r = renderMeshPreview(rt, mesh, t, radiance, o);
   char light[160];
   std::snprintf(light, sizeof light, "lighting rotated by %g deg about +Y (right-handed)", o.lightRotationDeg);
@@ -189,7 +190,7 @@ int previewPrefilter(const CommandLine& cl, const std::string& input, const std:
   lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
   EnvMap env = loadEnvironment(input, lo);
   env.yawDegrees = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
-  Runtime rt(cl.device());
+  Runtime& rt = jobs::processRuntime(cl.device());
   const PrefilterResult r = prefilterEnvironment(rt, env, o);
   writePrefilterPreviewPng(output, rt, r, width, input);
   status(cl, "wrote " + output + " (" + std::to_string(r.levels.size()) + " levels of a " + toString(o.lobe) + " chain, " +

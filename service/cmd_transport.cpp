@@ -8,6 +8,7 @@
 
 #include "cli.h"
 #include "glossy_cli.h"
+#include "jobs.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
@@ -57,13 +58,13 @@ int runTransport(const CommandLine& cl) {
     throw UsageError("--gltf", "a glTF copy needs a glTF input (" + input + " is not .gltf/.glb)");
 
   // The OpenCL device starts while the mesh loads.
-  auto device = std::async(std::launch::async, [&cl] { return std::make_unique<Runtime>(cl.device()); });
+  auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
   Mesh mesh = loadMesh(input);
   status(cl, "transport: " + input + ": " + std::to_string(mesh.vertexCount()) + " vertices, " +
                  std::to_string(mesh.triangleCount()) + " triangles, " + transportModeName(o.mode) + ", order " +
                  std::to_string(o.order) + ", " +
                  (o.tolerance > 0 ? "tolerance " + cl.get("tolerance") : std::to_string(o.samples) + " samples"));
-  const std::unique_ptr<Runtime> rt = device.get();
+  Runtime* const rt = device.get();
   const TransportResult r = computeTransport(*rt, mesh, o);
   // Every output is produced, then written to its temp file, before any is renamed
   // into place: a failure (coloured transport for GAMES202, a full disk) leaves none.

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <mutex>
 #include <sstream>
 
 #include "prtbake/atomic_file.h"
@@ -304,6 +305,16 @@ std::vector<std::string> filesRead(const Job& job, const std::vector<std::string
     if (e.is_regular_file()) files.push_back(e.path().string());
   std::sort(files.begin(), files.end());
   return files;
+}
+
+Runtime& processRuntime(const std::string& deviceSpec) {
+  // Never destroyed, so that the runtimes stay reachable (not leaks) to the very end.
+  static std::mutex mutex;
+  static auto* const runtimes = new std::map<std::string, Runtime*>();
+  std::lock_guard<std::mutex> lock(mutex);
+  Runtime*& rt = (*runtimes)[deviceSpec];
+  if (!rt) rt = new Runtime(deviceSpec);
+  return *rt;
 }
 
 void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also) {

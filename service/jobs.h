@@ -38,6 +38,12 @@ struct KeySpec {
 
 struct Job;
 
+// The OpenCL runtime of this process on device `deviceSpec` (as Runtime's constructor takes
+// it), started on first use and then kept until the process ends: never released, because
+// releasing the context makes PoCL free its compiler's state (0.1 s after a cold build,
+// measured), which a process about to exit has no use for. Thread-safe.
+Runtime& processRuntime(const std::string& deviceSpec);
+
 // What an executor gets besides the job: the shared OpenCL runtime (created on
 // first use) and the paths to write each requested output to. The runner moves
 // those files to their final names only when the whole job has succeeded.

@@ -168,7 +168,7 @@ Runner::~Runner() = default;
 Runtime& Runner::runtime() {
   if (!runtime_) {
     const auto t0 = Clock::now();
-    runtime_ = std::make_unique<Runtime>(options_.device);
+    runtime_ = &processRuntime(options_.device);
     runtimeStartupSeconds_ = secondsSince(t0);
     reporter_.event({{"event", "runtime_start"}, {"device", runtime_->deviceLabel()},
                      {"seconds", runtimeStartupSeconds_}});

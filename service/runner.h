@@ -77,7 +77,7 @@ class Runner {
 
   RunOptions options_;
   Reporter& reporter_;
-  std::unique_ptr<Runtime> runtime_;
+  Runtime* runtime_ = nullptr;  // processRuntime's, once a job needs it
   double runtimeStartupSeconds_ = 0;
 };
 

@@ -18,7 +18,6 @@
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
-#include "prtbake/hash.h"
 #include "prtbake/limits.h"
 
 namespace prtbake {
@@ -245,9 +244,8 @@ std::string glossySidecarBytes(const std::string& inputPath, const Mesh& mesh, c
   }
   if (o.albedoOverride) params["albedo"] = {(*o.albedoOverride)[0], (*o.albedoOverride)[1], (*o.albedoOverride)[2]};
   j["parameters"] = params;
-  j["input"] = {{"path", inputPath}, {"sha256", inputPath == mesh.sourcePath && !mesh.sourceSha256.empty() ? mesh.sourceSha256 : sha256File(inputPath)},
-                {"vertices", mesh.vertexCount()},
-                {"triangles", mesh.triangleCount()}};
+  j["input"] = {{"path", inputPath}, {"sha256", mesh.inputSha256(inputPath)},
+                {"vertices", mesh.vertexCount()}, {"triangles", mesh.triangleCount()}};
   const std::vector<size_t> shape = glossyNpyShape(st.vertexCount, st.channels, st.orderOut, st.orderIn);
   j["output"] = {{"npy", npyPath}, {"shape", shape}, {"dtype", matrixDtypeName(dtype)}};
   j["conventions"] = {

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "prtbake/error.h"
+#include "prtbake/hash.h"
 
 namespace prtbake {
 namespace {
@@ -25,6 +26,10 @@ bool Mesh::greyAlbedo() const {
   for (size_t i = 0; i + 2 < albedo.size(); i += 3)
     if (albedo[i] != albedo[i + 1] || albedo[i] != albedo[i + 2]) return false;
   return true;
+}
+
+std::string Mesh::inputSha256(const std::string& path) const {
+  return path == sourcePath && !sourceSha256.empty() ? sourceSha256 : sha256File(path);
 }
 
 Mesh loadMesh(const std::string& path) {

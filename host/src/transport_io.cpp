@@ -11,7 +11,6 @@
 #include "gltf_common.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
-#include "prtbake/hash.h"
 #include "prtbake/transport.h"
 #include "tolerance.h"
 
@@ -139,7 +138,7 @@ std::string transportSidecarBytes(const std::string& inputPath, const Mesh& mesh
   }
   if (o.albedoOverride) params["albedo"] = {(*o.albedoOverride)[0], (*o.albedoOverride)[1], (*o.albedoOverride)[2]};
   j["parameters"] = params;
-  j["input"] = {{"path", inputPath}, {"sha256", inputPath == mesh.sourcePath && !mesh.sourceSha256.empty() ? mesh.sourceSha256 : sha256File(inputPath)}, {"vertices", mesh.vertexCount()},
+  j["input"] = {{"path", inputPath}, {"sha256", mesh.inputSha256(inputPath)}, {"vertices", mesh.vertexCount()},
                 {"triangles", mesh.triangleCount()}};
   j["conventions"] = {
       {"basis", "real orthonormal SH with the Condon-Shortley phase"},

@@ -35,6 +35,9 @@ struct Mesh {
   size_t triangleCount() const { return indices.size() / 3; }
   // True when every vertex has r = g = b (the transport stays scalar).
   bool greyAlbedo() const;
+  // SHA-256 (hex) of the file `path`: the loader's hash when `path` is the source it parsed
+  // and hashed, else the file read now.
+  std::string inputSha256(const std::string& path) const;
 };
 
 // Loads a .gltf/.glb (tinygltf) or .obj (tinyobjloader) by its extension, fills
