@@ -7,12 +7,12 @@
 namespace prtbake {
 
 void* allocateLarge(size_t bytes) {
-  constexpr size_t kHuge = size_t(2) << 20, kLarge = size_t(4) << 20, kSmallAlign = 128;
-  const size_t align = bytes >= kLarge ? kHuge : kSmallAlign;
+  constexpr size_t kHuge = size_t(2) << 20, kSmallAlign = 128;
+  const size_t align = bytes >= kHugePageBlock ? kHuge : kSmallAlign;
   const size_t rounded = (bytes + align - 1) / align * align;  // aligned_alloc wants a multiple
   void* p = std::aligned_alloc(align, rounded ? rounded : align);
   if (!p) throw std::bad_alloc();
-  if (bytes >= kLarge) ::madvise(p, rounded, MADV_HUGEPAGE);  // a hint: ignored where huge pages are off
+  if (bytes >= kHugePageBlock) ::madvise(p, rounded, MADV_HUGEPAGE);  // a hint: ignored where huge pages are off
   return p;
 }
 

@@ -15,6 +15,9 @@
 
 namespace prtbake {
 
+// Blocks of this many bytes or more are aligned to 2 MiB and advised as huge pages.
+constexpr size_t kHugePageBlock = size_t(4) << 20;
+
 void* allocateLarge(size_t bytes);
 void freeLarge(void* p) noexcept;
 
