@@ -3,7 +3,6 @@
 // runtime, commits each job's outputs as a set and writes its manifest last.
 #pragma once
 
-#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
