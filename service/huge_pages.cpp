@@ -2,9 +2,9 @@
 // goes through here: blocks of kHugePageBlock bytes or more as RawVector's are made
 // (prtbake/raw_vector.h: aligned to 2 MiB and advised as transparent huge pages), the
 // rest from malloc. A mesh command touches ~150 MB of fresh memory for a 200,000-triangle
-// mesh, a page fault per 4 KiB page, each several microseconds on a virtual machine:
-// on bench/bench_embree.sh's knot 45,000 faults and 0.87 s with 16 samples per vertex,
-// 23,000 faults and 0.70 s with this (bench/results/transport.md).
+// mesh, a page fault per 4 KiB page, each several microseconds on a virtual machine: on
+// bench/bench_embree.sh's knot with 16 samples per vertex, 45,400 faults before and
+// 14,400-15,100 with this (bench/results/transport.md).
 #include <cstdlib>
 #include <new>
 
