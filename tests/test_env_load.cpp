@@ -17,9 +17,12 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -28,6 +31,7 @@
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
+#include "prtbake/raw_vector.h"
 #include "test_common.h"
 
 using namespace prtbake;
@@ -971,4 +975,20 @@ TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
     CHECK(env.rgb[3 * 17] == 0.0f);
     CHECK(env.rgb[3 * 40 + 1] == 0.0f);
   }
+}
+
+// allocateLarge backs RawVector (the decoded images) and the prtbake executable's every
+// large C++ block (service/huge_pages.cpp): huge-page blocks start on a 2 MiB boundary (so
+// that they can be whole huge pages), small ones on 128 bytes (CL_MEM_USE_HOST_PTR), and a
+// size that cannot be rounded up to its alignment is refused, not wrapped to a small block.
+TEST_CASE("allocateLarge aligns large and small blocks and refuses sizes it cannot round", "[env_load]") {
+  for (size_t bytes : {size_t(1), size_t(1000), kHugePageBlock - 1, kHugePageBlock, kHugePageBlock + 12345}) {
+    void* p = allocateLarge(bytes);
+    const size_t align = bytes >= kHugePageBlock ? (size_t(2) << 20) : 128;
+    CHECK(reinterpret_cast<uintptr_t>(p) % align == 0);
+    std::memset(p, 1, bytes);  // the whole block is usable (ASan checks the bounds)
+    freeLarge(p);
+  }
+  CHECK_THROWS_AS(allocateLarge(SIZE_MAX), std::bad_alloc);
+  CHECK_THROWS_AS(allocateLarge(SIZE_MAX - (size_t(1) << 20)), std::bad_alloc);
 }
