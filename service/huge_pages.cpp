@@ -10,6 +10,17 @@
 
 #include "prtbake/raw_vector.h"
 
+// Not under AddressSanitizer, whose own operator new records each block's kind: a library
+// calling a form not replaced here (nothrow new) would then be freed by this delete.
+#if defined(__SANITIZE_ADDRESS__)
+#define PRTBAKE_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define PRTBAKE_ASAN 1
+#endif
+#endif
+
+#ifndef PRTBAKE_ASAN
 namespace {
 
 void* allocate(size_t bytes) {
@@ -29,3 +40,4 @@ void operator delete(void* p) noexcept { std::free(p); }
 void operator delete[](void* p) noexcept { std::free(p); }
 void operator delete(void* p, size_t) noexcept { std::free(p); }
 void operator delete[](void* p, size_t) noexcept { std::free(p); }
+#endif
