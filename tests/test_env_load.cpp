@@ -18,6 +18,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -33,6 +34,10 @@
 #include "prtbake/exr.h"
 #include "prtbake/raw_vector.h"
 #include "test_common.h"
+
+// The deflate of the system's stb library (stb_image_write.c), which its header declares only
+// under STB_IMAGE_WRITE_IMPLEMENTATION.
+extern "C" unsigned char* stbi_zlib_compress(unsigned char* data, int data_len, int* out_len, int quality);
 
 using namespace prtbake;
 
@@ -923,6 +928,63 @@ TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
     writeBytes(p, std::string("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 8\n") +
                       std::string{'\x02', '\x02', '\x00', '\x08', '\x00'} + std::string(40, '\x81'));
     CHECK(inputErrorOf([&] { load(p, "latlong"); }).find("a run of length 0") != std::string::npos);
+  }
+  SECTION("data that claims more than its image needs: a 1 GiB PNG chunk, a deflate bomb, a JPEG Huffman table; a BMP") {
+    // Chunks by hand: length, type, data, and a CRC of zeros (stb_image does not check it).
+    auto chunk = [](const std::string& type, const std::string& data, uint32_t length) {
+      const std::string len{char(length >> 24), char(length >> 16 & 255), char(length >> 8 & 255), char(length & 255)};
+      return len + type + data + std::string(4, '\0');
+    };
+    // 32x16 (a lat-long map), 8-bit RGB, not interlaced: 1568 bytes of filtered rows.
+    const std::string png = std::string("\x89PNG\r\n\x1a\n", 8) +
+                            chunk("IHDR", std::string("\0\0\0\x20\0\0\0\x10\x08\x02\0\0\0", 13), 13);
+    const std::string p = dir + "/claims.png";
+    // An IDAT chunk that says 1 GiB follows in a 70-byte file: stb allocated that much first.
+    writeBytes(p, png + chunk("IDAT", "x^", 1u << 30));
+    std::string msg = inputErrorOf([&] { load(p); });
+    INFO(msg);
+    CHECK(msg.rfind(p + ": cannot decode image: its data asks for a block of 1073741824 bytes", 0) == 0);
+    // 16 MiB of zeros deflated (~16 KB) behind the same header: stb doubled its buffer
+    // up to 16 MiB and then decoded the first 1568 bytes. Refused at the first block past
+    // the bound (16 * 64 * 48 + 1 MiB + twice the file, about 1.1 MB).
+    std::vector<unsigned char> zeros(16 << 20);
+    int zlen = 0;
+    unsigned char* z = stbi_zlib_compress(zeros.data(), int(zeros.size()), &zlen, 8);
+    REQUIRE(z);
+    const std::string idat(reinterpret_cast<const char*>(z), size_t(zlen));
+    std::free(z);
+    writeBytes(p, png + chunk("IDAT", idat, uint32_t(idat.size())) + chunk("IEND", "", 0));
+    msg = inputErrorOf([&] { load(p); });
+    CHECK(msg.rfind(p + ": cannot decode image: its data asks for a block of", 0) == 0);
+    CHECK(msg.find("more than the image needs") != std::string::npos);
+    // The same header with its 1568 bytes decodes: the bound is not the refusal.
+    std::vector<unsigned char> rows(1568);
+    z = stbi_zlib_compress(rows.data(), int(rows.size()), &zlen, 8);
+    REQUIRE(z);
+    writeBytes(p, png + chunk("IDAT", std::string(reinterpret_cast<const char*>(z), size_t(zlen)), uint32_t(zlen)) +
+                      chunk("IEND", "", 0));
+    std::free(z);
+    CHECK(load(p, "latlong").width == 32);
+    // A JPEG whose first Huffman table counts 255 more 16-bit codes: stb_image 2.27 wrote
+    // them past the table (and then reported "bad code lengths").
+    const std::string jpg = dir + "/huffman.jpg";
+    std::vector<unsigned char> rgb(3 * 32 * 16, 90);
+    REQUIRE(stbi_write_jpg(jpg.c_str(), 32, 16, 3, rgb.data(), 90) != 0);
+    REQUIRE(load(jpg, "latlong").width == 32);
+    std::string bytes = readBytes(jpg);
+    const size_t dht = bytes.find("\xff\xc4");
+    REQUIRE(dht != std::string::npos);
+    bytes[dht + 20] = char(255);  // the count of 16-bit codes of the segment's first table
+    writeBytes(jpg, bytes);
+    msg = inputErrorOf([&] { load(jpg); });
+    INFO(msg);
+    CHECK(msg.rfind(jpg + ": cannot decode image: a Huffman table of", 0) == 0);
+    CHECK(msg.find("codes (at most 256)") != std::string::npos);
+    // stb_image's other formats are not read.
+    const std::string bmp = dir + "/t.bmp";
+    const std::vector<unsigned char> px(3 * 8 * 4, 100);
+    REQUIRE(stbi_write_bmp(bmp.c_str(), 8, 4, 3, px.data()) != 0);
+    CHECK(inputErrorOf([&] { load(bmp); }).rfind(bmp + ": cannot decode image: unknown image type", 0) == 0);
   }
   SECTION("faces: missing, different sizes, not square") {
     const std::string d = dir + "/faces";

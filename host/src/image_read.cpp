@@ -13,7 +13,6 @@
 #include <ImfRgbaFile.h>
 #include <ImfStandardAttributes.h>
 #include <ImfThreading.h>
-#include <stb/stb_image.h>
 #include <sys/stat.h>
 
 #include <array>
@@ -29,6 +28,7 @@
 
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
+#include "stb_decode.h"
 
 namespace prtbake::detail {
 namespace {
@@ -145,35 +145,66 @@ std::string radianceDataProblem(const std::vector<unsigned char>& b) {
   return "";
 }
 
-std::string stbReason() {
-  const char* r = stbi_failure_reason();
-  return r ? r : "unknown error";
+// stb_image 2.27 (what Debian ships) writes past its Huffman tables when the 16 code
+// counts of a JPEG DHT table add up to more than 256 (fixed upstream in 2.28). This walks
+// the marker segments the way stbi__decode_jpeg_image meets them (garbage and fill bytes
+// skipped, entropy-coded data passed over to the next marker) and reads each DHT table's
+// counts as stb does, past the segment's end while its length says more tables follow.
+// Returns why stb cannot be trusted with the data ("" when it can).
+std::string jpegHuffmanProblem(const std::vector<unsigned char>& b) {
+  size_t start = 0;  // stb takes any number of fill bytes (0xFF) before the SOI marker
+  while (start < b.size() && b[start] == 0xFF) ++start;
+  if (start == 0 || start == b.size() || b[start] != 0xD8) return "";  // not a JPEG
+  auto at = [&](size_t i) { return i < b.size() ? size_t(b[i]) : 0; };  // stb reads 0 past the end
+  for (size_t pos = start + 1; pos + 1 < b.size();) {
+    const size_t m = b[pos + 1];
+    if (b[pos] != 0xFF || m == 0xFF || m == 0x00 || (m >= 0xD0 && m <= 0xD7)) {  // no segment starts here
+      ++pos;
+      continue;
+    }
+    if (m == 0xD9) break;  // end of image
+    const size_t length = at(pos + 2) << 8 | at(pos + 3);
+    if (m == 0xC4)
+      for (size_t t = pos + 4, left = length; left > 2;) {  // 2: the length field itself
+        size_t codes = 0;
+        for (size_t i = 1; i <= 16; ++i) codes += at(t + i);
+        if (codes > 256) return "a Huffman table of " + std::to_string(codes) + " codes (at most 256)";
+        t += 17 + codes;
+        left = left - 2 > 17 + codes ? left - 17 - codes : 2;
+      }
+    pos += 2 + length;
+  }
+  return "";
 }
-
-struct StbFree {
-  void operator()(void* p) const { stbi_image_free(p); }
-};
 
 Image readWithStb(const std::string& path, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode, bool compact) {
   if (bytes.empty()) throw InputError(path, "cannot decode image: the file is empty");
   if (bytes.size() > size_t(std::numeric_limits<int>::max())) throw InputError(path, "file too large");
+  const std::string jpegProblem = jpegHuffmanProblem(bytes);
+  if (!jpegProblem.empty()) throw InputError(path, "cannot decode image: " + jpegProblem);
   const auto* buf = bytes.data();
   const int len = int(bytes.size());
   Image img;
-  int w = 0, h = 0, channelsInFile = 0;
+  int w = 0, h = 0;
   // Peak bytes per pixel: the float RGB result (12), stb's decoded copy (3 samples of
   // 4, 2 or 1 bytes) and, for integer images, the 16-bit code copy (6).
-  const bool hdr = stbi_is_hdr_from_memory(buf, len), sixteen = !hdr && stbi_is_16_bit_from_memory(buf, len);
+  const bool hdr = stb::isHdr(buf, len), sixteen = !hdr && stb::is16Bit(buf, len);
   const double peakBytesPerPixel = hdr ? 24 : sixteen ? 24 : 21;
-  // The header's size, checked before stb allocates its own buffer of that size.
-  if (stbi_info_from_memory(buf, len, &w, &h, &channelsInFile)) checkSize(path, w, h, peakBytesPerPixel);
-  // Ask stb for 3 channels: it replicates grey and drops alpha.
+  // The header's size, checked before stb allocates its own buffer of that size. Any one
+  // block stb asks for is then bounded: 16 bytes a pixel, padded to JPEG's largest MCU
+  // (stb's largest is PNG's inflated data, 2 x 8 bytes a pixel for 16-bit RGBA, with room to
+  // double for interlacing), or twice the file (PNG's compressed data, doubled as it grows).
+  size_t blockLimit = 2 * bytes.size() + (1 << 20);
+  if (stb::info(buf, len, &w, &h)) {
+    checkSize(path, w, h, peakBytesPerPixel);
+    blockLimit += 16 * (size_t(w) + 32) * (size_t(h) + 32);
+  }
   if (hdr) {
     img.format = "Radiance HDR";
     const std::string problem = radianceDataProblem(bytes);
     if (!problem.empty()) throw InputError(path, "cannot decode Radiance HDR image: " + problem);
-    std::unique_ptr<float, StbFree> px(stbi_loadf_from_memory(buf, len, &w, &h, &channelsInFile, 3));
-    if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stbReason());
+    std::unique_ptr<float, decltype(&std::free)> px(stb::loadHdr(buf, len, blockLimit, &w, &h), &std::free);
+    if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stb::reason());
     checkSize(path, w, h, peakBytesPerPixel);
     img.rgb.assign(px.get(), px.get() + 3 * size_t(w) * size_t(h));
   } else {
@@ -182,18 +213,18 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
     if (sixteen) {
       img.format = "16-bit image";
       lut16Max = 65535.0;
-      std::unique_ptr<stbi_us, StbFree> px(stbi_load_16_from_memory(buf, len, &w, &h, &channelsInFile, 3));
-      if (!px) throw InputError(path, "cannot decode image: " + stbReason());
+      std::unique_ptr<uint16_t, decltype(&std::free)> px(stb::load16(buf, len, blockLimit, &w, &h), &std::free);
+      if (!px) throw InputError(path, "cannot decode image: " + stb::reason());
       checkSize(path, w, h, peakBytesPerPixel);
       codes.assign(px.get(), px.get() + 3 * size_t(w) * size_t(h));
     } else {
       img.format = "8-bit image";
-      std::unique_ptr<stbi_uc, StbFree> px(stbi_load_from_memory(buf, len, &w, &h, &channelsInFile, 3));
-      if (!px) throw InputError(path, "cannot decode image: " + stbReason());
+      std::unique_ptr<uint8_t, decltype(&std::free)> px(stb::load8(buf, len, blockLimit, &w, &h), &std::free);
+      if (!px) throw InputError(path, "cannot decode image: " + stb::reason());
       checkSize(path, w, h, peakBytesPerPixel);
       if (compact) {
         // The codes as they are, with their linear values in the table.
-        img.codes = decltype(img.codes)(px.release(), stbi_image_free);
+        img.codes = std::move(px);
         for (int c = 0; c < 256; ++c)
           img.codeToLinear[size_t(c)] = float(ldrDecode == LdrDecode::Srgb ? srgbToLinear(c / 255.0) : std::pow(c / 255.0, 2.2));
         img.width = w, img.height = h;

@@ -7,9 +7,9 @@
 //     dataMinX/Y). R, G, B channels (missing ones read as 0), or a Y-only grey
 //     image, or luminance/chroma (Y, RY, BY) through RgbaInputFile.
 //   Radiance .hdr: stb_image's stbi_loadf (linear as stored).
-//   PNG, JPEG (and the other 8/16-bit formats stb_image knows): decoded to
-//     integers and linearised with `ldrDecode`; grey is expanded to RGB and alpha
-//     is dropped.
+//   PNG (8 or 16 bits) and JPEG: stb_image, decoded to integers and linearised with
+//     `ldrDecode`; grey is expanded to RGB and alpha is dropped. stb_image's other
+//     formats (BMP, GIF, PSD, TGA, PIC, PNM) are not read.
 // Every failure is an InputError naming the file and the library's reason.
 #pragma once
 
