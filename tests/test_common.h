@@ -2,12 +2,18 @@
 // data folder, temp directories and running the CLI.
 #pragma once
 
-#include <cstdio>
-#include <cstdlib>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
-#include <sys/stat.h>
+#include <vector>
 
 #include "prtbake/runtime.h"
 
@@ -79,6 +85,45 @@ inline CliResult runShell(const std::string& cmd) {
 
 // Runs the built prtbake executable with `args` (a shell-quoted string).
 inline CliResult runCli(const std::string& args) { return runShell(std::string("'") + PRTBAKE_CLI_PATH + "' " + args); }
+
+struct MeasuredRun {
+  int exitCode;        // 128 + the signal number for a process killed by one
+  double seconds;      // wall time from the spawn to the end
+  double peakMiB;      // the process's own peak resident size (wait4)
+  std::string output;  // stdout and stderr together
+};
+// Runs the built prtbake executable with `args` (one argument each, no shell), with its
+// output in `outputFile`. posix_spawn, not fork: the child's peak resident size is then its
+// own, without a copy of this process's pages.
+inline MeasuredRun runCliMeasured(std::vector<std::string> args, const std::string& outputFile) {
+  args.insert(args.begin(), PRTBAKE_CLI_PATH);
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  ::posix_spawn_file_actions_init(&actions);
+  ::posix_spawn_file_actions_addopen(&actions, 1, outputFile.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  ::posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  MeasuredRun r{-1, 0, 0, {}};
+  const auto t0 = std::chrono::steady_clock::now();
+  pid_t pid = 0;
+  const int spawned = ::posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  ::posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) return r;
+  int status = 0;
+  rusage ru{};
+  if (::wait4(pid, &status, 0, &ru) != pid) return r;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  r.peakMiB = double(ru.ru_maxrss) / 1024.0;
+  if (FILE* f = std::fopen(outputFile.c_str(), "rb")) {
+    char buf[4096];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) r.output.append(buf, n);
+    std::fclose(f);
+  }
+  return r;
+}
 
 inline bool fileExists(const std::string& path) {
   struct stat st {};

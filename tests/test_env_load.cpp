@@ -840,6 +840,100 @@ TEST_CASE("Radiance .hdr and the Grace lat-long load", "[env_load][data]") {
 
 // ---------------------------------------------------------------- bad input
 
+TEST_CASE("A header that claims more than its file can hold is refused from the header and the size", "[env_load][bounds]") {
+  // Each file below is a few hundred bytes to a few KiB whose header claims an image of tens
+  // of millions of pixels. `prtbake env` must refuse it before anything of the image's size
+  // is allocated: within kSeconds and kPeakMiB (the whole process: its libraries take about
+  // 10 MiB; the first case, the one fuzzing found, took 2.35 GB and 3.5 s before the
+  // Radiance header check), naming the file and the shortfall. Each message is the check's
+  // own, so each case fails without its check.
+  constexpr double kSeconds = 0.1, kPeakMiB = 64;
+  const std::string dir = test::tempDir("env-bounds");
+  struct Case {
+    std::string name, bytes, message;
+  };
+  std::vector<Case> cases;
+  auto be32 = [](uint32_t v) { return std::string{char(v >> 24), char(v >> 16 & 255), char(v >> 8 & 255), char(v & 255)}; };
+  auto binary = [](size_t n) {
+    std::string b(n, '\0');
+    for (size_t i = 0; i < n; ++i) b[i] = char((i * 37 + 11) % 251 + 1);  // no newline (10) before byte 251 or so
+    for (char& c : b) c = c == '\n' ? '\x0b' : c;
+    return b;
+  };
+  // The fuzzing finding: 50,000 x 2,000 pixels, the resolution line not ended by a newline.
+  cases.push_back({"resolution.hdr", "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 050000 +X 2000@" + binary(500),
+                   "cannot decode Radiance HDR image: the resolution line (-Y 050000 +X 2000@) is not ended by a newline"});
+  // A proper resolution line over 500 bytes of run-length scanlines: 6.6 MB are the least.
+  cases.push_back({"short.hdr", "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 50000 +X 2000\n" + binary(500),
+                   "cannot decode Radiance HDR image: truncated: a 2000x50000 image needs at least 6600000 bytes"});
+  // Flat pixels (width below 8): 4 bytes each.
+  cases.push_back({"flat.hdr", "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 10000000 +X 4\n" + binary(500),
+                   "cannot decode Radiance HDR image: truncated: a 4x10000000 image needs at least 160000000 bytes"});
+  // PNG: 8192 x 4096 RGB behind 200 bytes of IDAT (100 MB of rows; deflate reaches 206 KB).
+  auto chunk = [&](const std::string& type, const std::string& data) { return be32(uint32_t(data.size())) + type + data + std::string(4, '\0'); };
+  const std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", be32(8192) + be32(4096) + std::string("\x08\x02\0\0\0", 5));
+  cases.push_back({"small-idat.png", png + chunk("IDAT", "x^" + binary(198)) + chunk("IEND", ""),
+                   "cannot decode image: truncated: its 200 bytes of image data cannot hold a 8192x4096 image of 24 bits a pixel"});
+  // JPEG: a baseline frame of 8192 x 4096 (524,288 blocks: at least 64 KiB of scan data).
+  std::vector<unsigned char> rgb(3 * 16 * 16, 90);
+  const std::string small = dir + "/small.jpg";
+  REQUIRE(stbi_write_jpg(small.c_str(), 16, 16, 3, rgb.data(), 90) != 0);
+  std::string jpg = readBytes(small);
+  const size_t sof = jpg.find("\xff\xc0");
+  REQUIRE(sof != std::string::npos);
+  jpg.replace(sof + 5, 4, std::string{'\x10', '\x00', '\x20', '\x00'});  // height 4096, width 8192
+  cases.push_back({"frame.jpg", jpg,
+                   "cannot decode image: truncated: its 6 bytes of entropy-coded data cannot hold a 8192x4096 image"});
+  // OpenEXR: a tiled file (no line offset table to check) and a scanline file whose offset
+  // table fits, each claiming 16384 x 8192 float RGB (1.5 GiB) in a few KiB.
+  Picture pic(64, 32);
+  for (int r = 0; r < 32; ++r)
+    for (int c = 0; c < 64; ++c) pic.set(c, r, normalized(1, 0.1 * r, 0.05 * c));
+  auto claimWindow = [&](const std::string& path, int width, int height) {
+    std::string bytes = readBytes(path);
+    const std::string attr("dataWindow\0box2i\0", 17);
+    const size_t at = bytes.find(attr);
+    REQUIRE(at != std::string::npos);
+    const int32_t box[4] = {0, 0, width - 1, height - 1};
+    bytes.replace(at + attr.size() + 4, 16, std::string(reinterpret_cast<const char*>(box), 16));
+    return bytes;
+  };
+  {
+    const std::string tiled = dir + "/tiled.exr";
+    Imf::Header header(64, 32);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    header.setTileDescription(Imf::TileDescription(32, 32, Imf::ONE_LEVEL));
+    for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    Imf::TiledOutputFile out(tiled.c_str(), header);
+    Imf::FrameBuffer fb;
+    for (int k = 0; k < 3; ++k)
+      fb.insert(std::string(1, "RGB"[k]),
+                Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(&pic.rgb[size_t(k)]), 3 * sizeof(float), 3 * sizeof(float) * 64));
+    out.setFrameBuffer(fb);
+    out.writeTiles(0, out.numXTiles() - 1, 0, out.numYTiles() - 1);
+  }
+  REQUIRE(loadEnvironment(dir + "/tiled.exr", EnvLoadOptions{}).width == 64);
+  cases.push_back({"tiled.exr", claimWindow(dir + "/tiled.exr", 16384, 8192),
+                   "truncated OpenEXR file: its 16384x8192 data window holds 1610612736 bytes of pixels"});
+  writeExrPicture(dir + "/lines.exr", pic);
+  // ZIP: 16 lines a chunk, 512 chunks: a table of 4 KiB, padded so that it fits.
+  cases.push_back({"lines.exr", claimWindow(dir + "/lines.exr", 16384, 8192) + binary(8192),
+                   "truncated OpenEXR file: its 16384x8192 data window holds 1610612736 bytes of pixels"});
+  for (const Case& c : cases) {
+    const std::string p = dir + "/" + c.name;
+    writeBytes(p, c.bytes);
+    const test::MeasuredRun run = test::runCliMeasured({"env", p, "-o", dir + "/out.json"}, dir + "/log.txt");
+    INFO(c.name << " (" << c.bytes.size() << " bytes): " << run.output << " in " << run.seconds << " s, peak "
+                << run.peakMiB << " MiB");
+    CHECK(run.exitCode == 1);
+    CHECK(run.output.rfind("prtbake: error: " + p + ": " + c.message, 0) == 0);
+    CHECK(std::count(run.output.begin(), run.output.end(), '\n') == 1);
+    CHECK(run.seconds < kSeconds);
+    CHECK(run.peakMiB < kPeakMiB);
+    CHECK_FALSE(test::fileExists(dir + "/out.json"));
+  }
+}
+
 TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
   const std::string dir = test::tempDir("env-bad");
   auto load = [](const std::string& p, const std::string& layout = "auto", bool clamp = false) {

@@ -2,10 +2,6 @@
 // shards, the preview's white furnace, and CPCA (synthetic oracles and mary.obj).
 #include <catch2/catch.hpp>
 
-#include <spawn.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-
 #include <cmath>
 #include <fstream>
 
@@ -143,20 +139,12 @@ TEST_CASE("CLI: the matrices stream to disk in vertex blocks (bounded memory)", 
   off_t size[2];
   for (int k = 0; k < 2; ++k) {
     const std::string name = k == 0 ? "small" : "large", obj = dir + "/" + name + ".obj", npy = dir + "/" + name + ".npy";
-    // posix_spawn (no copy of this process's pages, which a fork would count in the
-    // child's peak) and wait4: this child's own peak resident size.
-    std::vector<std::string> args = {PRTBAKE_CLI_PATH, "transport", obj, "-o", npy, "--transfer", "matrix",
-                                     "--order", "6", "--mode", "unshadowed", "--quiet"};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    pid_t pid = 0;
-    REQUIRE(::posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ) == 0);
-    int status = 0;
-    rusage ru{};
-    REQUIRE(::wait4(pid, &status, 0, &ru) == pid);
-    REQUIRE((WIFEXITED(status) && WEXITSTATUS(status) == 0));
-    peak[k] = double(ru.ru_maxrss) / 1024.0;
+    const test::MeasuredRun run = test::runCliMeasured({"transport", obj, "-o", npy, "--transfer", "matrix", "--order", "6",
+                                                        "--mode", "unshadowed", "--quiet"},
+                                                       dir + "/" + name + ".log");
+    INFO(run.output);
+    REQUIRE(run.exitCode == 0);
+    peak[k] = run.peakMiB;
     struct stat st {};
     ::stat(npy.c_str(), &st);
     size[k] = st.st_size;

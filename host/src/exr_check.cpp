@@ -51,6 +51,27 @@ size_t fixedValueSize(const std::string& type) {
   return 0;
 }
 
+// The most bytes of pixel data that one byte of a chunk can decode to, by compression
+// (ImfCompression.h order), so that a file too short for its data window is refused from
+// its header and size. NONE stores the pixels; RLE runs are at most 127 bytes from 2 (64);
+// ZIP and ZIPS are deflate, at most 1032:1 (a 258-byte match in 2 bits); PIZ is Huffman
+// with runs of at most 256 16-bit values in 10 bits (410, taken as 512); PXR24 is deflate
+// of 24 bits a float (1032 x 4/3); B44A stores a flat 4x4 block of halves (32 bytes) in 3
+// (11); DWAA/DWAB keep one DC value (2 bytes) per 8x8 block of halves (128 bytes) and
+// deflate it (66,048, taken as 131,072). 0: unknown (the library reports it).
+double maxExpansion(int compression) {
+  switch (compression) {
+    case 0: return 1;
+    case 1: return 64;
+    case 2: case 3: return 1032;
+    case 4: return 512;
+    case 5: return 1376;
+    case 6: case 7: return 11;
+    case 8: case 9: return 131072;
+    default: return 0;
+  }
+}
+
 // The header, attributes and offset table are at the start of the file: only this much of
 // it is read for the walk (a file's pixels may be gigabytes).
 constexpr size_t kHeaderBytes = size_t(64) << 20;
@@ -87,6 +108,7 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
   const bool multipart = (flags & kMultipartFlag) != 0;
   ExrHeaderFacts facts;
   int compression = -1;
+  double pixelBytes = 0;  // of the first part's channels, per pixel of its data window
   size_t pos = 8;
   // A null-terminated string of at most maxName characters at pos.
   auto readName = [&](const char* what) {
@@ -130,14 +152,18 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
       if (type == "chlist") {  // entries name\0 + 16 bytes, then \0
         size_t p = pos;
         int channels = 0;
+        double bytesPerPixel = 0;
         while (p < end && b[p] != '\0') {
           const size_t nul = b.find('\0', p);
           if (nul == std::string::npos || nul >= end || end - nul - 1 < 16) throw corrupt("malformed channel list");
+          // pixel type (0 uint, 1 half, 2 float), pLinear and 3 reserved bytes, x and y sampling
+          const int32_t type = le32(b, nul + 1), xs = le32(b, nul + 9), ys = le32(b, nul + 13);
+          if (xs > 0 && ys > 0) bytesPerPixel += (type == 1 ? 2.0 : 4.0) / (double(xs) * double(ys));
           p = nul + 1 + 16;
           ++channels;
         }
         if (p + 1 != end) throw corrupt("the channel list does not fill its " + std::to_string(size) + " bytes");
-        if (part == 0 && name == "channels") facts.channels = channels;
+        if (part == 0 && name == "channels") facts.channels = channels, pixelBytes = bytesPerPixel;
       } else if (type == "preview") {  // width, height, then width × height RGBA bytes
         if (size < 8 || double(uint32_t(le32(b, pos))) * double(uint32_t(le32(b, pos + 4))) * 4 + 8 != double(size))
           throw corrupt("the preview image does not fill its " + std::to_string(size) + " bytes");
@@ -160,6 +186,14 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
     }
     if (!multipart) break;
   }
+  // The chunks after the headers hold the first part's pixels at most maxExpansion times
+  // their size (a tiled file's other levels and other parts only add to what they need).
+  const double ratio = maxExpansion(compression), dataBytes = double(fileSize - pos);
+  const double pixelDataBytes = double(std::max(facts.width, 0LL)) * double(std::max(facts.height, 0LL)) * pixelBytes;
+  if (ratio > 0 && pixelDataBytes > ratio * dataBytes + 65536.0)
+    throw InputError(path, "truncated OpenEXR file: its " + std::to_string(facts.width) + "x" + std::to_string(facts.height) +
+                               " data window holds " + std::to_string((long long)pixelDataBytes) + " bytes of pixels, " +
+                               "more than the " + std::to_string((long long)dataBytes) + " bytes after its header can decode to");
   // A single-part scanline file's offset table follows the header: one 8-byte offset
   // per chunk of lines.
   if (!multipart && !(flags & kTiledFlag) && facts.height > 0) {

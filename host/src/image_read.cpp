@@ -3,6 +3,7 @@
 #include "image_read.h"
 
 #include "exr_check.h"
+#include "image_check.h"
 
 #include <ImfChannelList.h>
 #include <ImfEnvmap.h>
@@ -86,102 +87,14 @@ Image readOpenExr(const std::string& path, bool compact) {
   return img;
 }
 
-// stb_image's Radiance decoder loops forever on a run-length count of 0, which is
-// what it reads past the end of a truncated file (and what a corrupt one may hold).
-// This walks the scanline structure the way stb_image's stbi__hdr_load does, without
-// decoding, and returns why the data cannot be decoded ("" when stb can be trusted
-// with it, including the headers stb rejects by itself).
-std::string radianceDataProblem(const std::vector<unsigned char>& b) {
-  size_t pos = 0;
-  auto line = [&](std::string& out) {
-    out.clear();
-    while (pos < b.size() && b[pos] != '\n') out += char(b[pos++]);
-    if (pos >= b.size()) return false;
-    ++pos;
-    return true;
-  };
-  std::string tok;
-  if (!line(tok)) return "";  // no identifier line: stb reports it
-  do {
-    if (!line(tok)) return "";  // header never ends: stb reports it
-  } while (!tok.empty() && tok[0] != '\0');  // stb's header also ends at a line that starts with a NUL
-  if (!line(tok) || tok.compare(0, 3, "-Y ") != 0) return "";
-  char* end = nullptr;
-  const long height = std::strtol(tok.c_str() + 3, &end, 10);
-  while (*end == ' ') ++end;
-  if (std::strncmp(end, "+X ", 3) != 0) return "";
-  const long width = std::strtol(end + 3, nullptr, 10);
-  if (width <= 0 || height <= 0 || width > (1 << 24) || height > (1 << 24)) return "";
-  const size_t flatBytes = 4 * size_t(width) * size_t(height);
-  const std::string truncated = "truncated Radiance HDR pixel data";
-  if (width < 8 || width >= 32768) return b.size() - pos < flatBytes ? truncated : "";
-  for (long j = 0; j < height; ++j) {
-    if (b.size() - pos < 4) return truncated;
-    if (b[pos] != 2 || b[pos + 1] != 2 || (b[pos + 2] & 0x80)) {
-      // stb then reads the whole image flat from here.
-      return b.size() - pos < flatBytes ? truncated : "";
-    }
-    if (((size_t(b[pos + 2]) << 8) | b[pos + 3]) != size_t(width)) return "";  // stb reports it
-    pos += 4;
-    for (int k = 0; k < 4; ++k) {
-      long i = 0;
-      while (i < width) {
-        if (pos >= b.size()) return truncated;
-        unsigned count = b[pos++];
-        if (count > 128) {
-          if (pos >= b.size()) return truncated;
-          ++pos;
-          count -= 128;
-        } else {
-          if (count == 0) return "bad RLE data in HDR (a run of length 0)";
-          if (b.size() - pos < count) return truncated;
-          pos += count;
-        }
-        if (long(count) > width - i) return "";  // stb reports "bad RLE data"
-        i += long(count);
-      }
-    }
-  }
-  return "";
-}
-
-// stb_image 2.27 (what Debian ships) writes past its Huffman tables when the 16 code
-// counts of a JPEG DHT table add up to more than 256 (fixed upstream in 2.28). This walks
-// the marker segments the way stbi__decode_jpeg_image meets them (garbage and fill bytes
-// skipped, entropy-coded data passed over to the next marker) and reads each DHT table's
-// counts as stb does, past the segment's end while its length says more tables follow.
-// Returns why stb cannot be trusted with the data ("" when it can).
-std::string jpegHuffmanProblem(const std::vector<unsigned char>& b) {
-  size_t start = 0;  // stb takes any number of fill bytes (0xFF) before the SOI marker
-  while (start < b.size() && b[start] == 0xFF) ++start;
-  if (start == 0 || start == b.size() || b[start] != 0xD8) return "";  // not a JPEG
-  auto at = [&](size_t i) { return i < b.size() ? size_t(b[i]) : 0; };  // stb reads 0 past the end
-  for (size_t pos = start + 1; pos + 1 < b.size();) {
-    const size_t m = b[pos + 1];
-    if (b[pos] != 0xFF || m == 0xFF || m == 0x00 || (m >= 0xD0 && m <= 0xD7)) {  // no segment starts here
-      ++pos;
-      continue;
-    }
-    if (m == 0xD9) break;  // end of image
-    const size_t length = at(pos + 2) << 8 | at(pos + 3);
-    if (m == 0xC4)
-      for (size_t t = pos + 4, left = length; left > 2;) {  // 2: the length field itself
-        size_t codes = 0;
-        for (size_t i = 1; i <= 16; ++i) codes += at(t + i);
-        if (codes > 256) return "a Huffman table of " + std::to_string(codes) + " codes (at most 256)";
-        t += 17 + codes;
-        left = left - 2 > 17 + codes ? left - 17 - codes : 2;
-      }
-    pos += 2 + length;
-  }
-  return "";
-}
-
 Image readWithStb(const std::string& path, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode, bool compact) {
   if (bytes.empty()) throw InputError(path, "cannot decode image: the file is empty");
   if (bytes.size() > size_t(std::numeric_limits<int>::max())) throw InputError(path, "file too large");
-  const std::string jpegProblem = jpegHuffmanProblem(bytes);
-  if (!jpegProblem.empty()) throw InputError(path, "cannot decode image: " + jpegProblem);
+  // What the file can hold, before stb allocates the image its header claims.
+  for (std::string (*check)(const std::vector<unsigned char>&) : {&pngProblem, &jpegProblem}) {
+    const std::string problem = check(bytes);
+    if (!problem.empty()) throw InputError(path, "cannot decode image: " + problem);
+  }
   const auto* buf = bytes.data();
   const int len = int(bytes.size());
   Image img;
@@ -201,7 +114,7 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
   }
   if (hdr) {
     img.format = "Radiance HDR";
-    const std::string problem = radianceDataProblem(bytes);
+    const std::string problem = radianceProblem(bytes);
     if (!problem.empty()) throw InputError(path, "cannot decode Radiance HDR image: " + problem);
     std::unique_ptr<float, decltype(&std::free)> px(stb::loadHdr(buf, len, blockLimit, &w, &h), &std::free);
     if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stb::reason());

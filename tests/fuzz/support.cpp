@@ -12,12 +12,13 @@
 namespace prtbake::fuzz {
 namespace {
 
-// Decoded inputs are capped far below libFuzzer's -rss_limit_mb (2048), so that an
-// input which makes prtbake allocate past its own cap is a finding, not an
-// out-of-memory report about a legitimately large input; and low, because a mutated
-// header that claims the most the cap allows costs a zero-filled allocation of that
-// size on every such run (at 256 MiB those runs took 0.4 s each).
-constexpr size_t kFuzzInputLimitBytes = size_t(32) << 20;
+// Decoded inputs are capped at half of libFuzzer's -malloc_limit_mb (512, scripts/fuzz.sh),
+// so that a block the cap did not account for is a finding, not an out-of-memory report
+// about a legitimately large input. Below the cap, what a file may decode to is bounded by
+// its size (image_check.h, exr_check.cpp): a mutated header that claims a large image over
+// a few bytes is refused from its size. (The cap was 32 MiB while that was the only bound:
+// headers claiming up to the cap cost a zero-filled block of that size on every such run.)
+constexpr size_t kFuzzInputLimitBytes = size_t(256) << 20;
 
 struct Scratch {
   std::string dir;
