@@ -58,10 +58,10 @@ for t in "${targets[@]}"; do
   dict=$(dict_of "$t")
   status=0
   # -timeout: an input that takes longer is a hang. -malloc_limit_mb: one block of 512 MiB
-  # or more is a finding: the targets cap what a file may decode to at 256 MiB
-  # (tests/fuzz/support.cpp) and refuse a file too short for its header's claim, so only a
+  # or more is a finding: the targets cap what a file may decode to
+  # (tests/fuzz/support.cpp: 128 MiB) and refuse a file too short for its header's claim, so only a
   # block that neither check accounted for gets there. -rss_limit_mb: the whole process.
-  "$exe" -max_total_time="$seconds" -timeout=20 -malloc_limit_mb=512 -rss_limit_mb=1024 -print_final_stats=1 \
+  "$exe" -max_total_time="$seconds" -timeout=20 -malloc_limit_mb=512 -rss_limit_mb=2048 -print_final_stats=1 \
     ${dict:+-dict="$dict"} -artifact_prefix="$build/findings/$t/" \
     "$build/corpus/$t" "tests/fuzz/corpus/$t" >"$log" 2>&1 || status=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)

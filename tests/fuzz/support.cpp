@@ -12,13 +12,13 @@
 namespace prtbake::fuzz {
 namespace {
 
-// Decoded inputs are capped at half of libFuzzer's -malloc_limit_mb (512, scripts/fuzz.sh),
+// Decoded inputs are capped at a quarter of libFuzzer's -malloc_limit_mb (512, scripts/fuzz.sh),
 // so that a block the cap did not account for is a finding, not an out-of-memory report
 // about a legitimately large input. Below the cap, what a file may decode to is bounded by
 // its size (image_check.h, exr_check.cpp): a mutated header that claims a large image over
 // a few bytes is refused from its size. (The cap was 32 MiB while that was the only bound:
 // headers claiming up to the cap cost a zero-filled block of that size on every such run.)
-constexpr size_t kFuzzInputLimitBytes = size_t(256) << 20;
+constexpr size_t kFuzzInputLimitBytes = size_t(128) << 20;
 
 struct Scratch {
   std::string dir;
