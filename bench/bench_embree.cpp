@@ -127,8 +127,9 @@ int main(int argc, char** argv) {
           }
           rtcOccluded16(valid, scene, &ctx, &r);
           if (o.order == 3) {
-            // DESIGN.md's order-3 polynomials in float over the packet's lanes (as prtbake's
-            // kernel evaluates them), summed per packet in float and per vertex in double.
+            // The order-3 polynomials of docs/conventions.md "SH basis" in float over the
+            // packet's lanes (as prtbake's kernel evaluates them), summed per packet in float
+            // and per vertex in double.
             float a[9] = {};
             for (int j = 0; j < 16; ++j) {
               const float w = (s0 + j < ns && r.tfar[j] >= 0) ? 1.0f : 0.0f;  // tfar = −inf: occluded

@@ -1,4 +1,4 @@
-// glossy.cl: per-vertex glossy transfer matrices (DESIGN.md, "Glossy transfer").
+// glossy.cl: per-vertex glossy transfer matrices (docs/conventions.md, "Glossy transfer").
 //
 // For a vertex p with normal n,
 //   M_ij(p) = ∫ V(p, ω) H(n·ω) Y_i(ω) Y_j(ω) dω.

@@ -1,4 +1,4 @@
-// lut.cl: split-sum BRDF lookup tables (DESIGN.md "BRDF LUT"), one work-item per point.
+// lut.cl: split-sum BRDF lookup tables (docs/conventions.md "BRDF LUT"), one work-item per point.
 //
 // Build options (each variant is its own cached program):
 //   -DLUT_NDF=0|1      GGX | Beckmann

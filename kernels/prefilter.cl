@@ -1,4 +1,4 @@
-// prefilter.cl: prefiltered specular environments (DESIGN.md "Prefiltered specular").
+// prefilter.cl: prefiltered specular environments (docs/conventions.md "Prefiltered specular").
 //
 //   P(R) = ∫ L(l) k(R·l) dl / ∫ k(R·l) dl
 //
@@ -164,7 +164,7 @@ inline float4 pf_bilinear(__global const float4* chain, __global const int2* lev
   return mix(mix(a, bb, ax), mix(c, d, ax), ay);
 }
 
-// Face and (s, t) ∈ [0, 1]² of a direction (DESIGN.md's cube: +X (1, −v, −u), ...).
+// Face and (s, t) ∈ [0, 1]² of a direction (docs/conventions.md "Cube faces": +X (1, −v, −u), ...).
 inline int pf_face_st(float3 d, float* s, float* t) {
   const float3 a = fabs(d);
   int face;

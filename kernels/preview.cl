@@ -1,5 +1,5 @@
 // preview.cl: the mesh preview, one camera ray per pixel through the transport BVH,
-// shaded as a real-time engine shades baked PRT (DESIGN.md, "Transport"):
+// shaded as a real-time engine shades baked PRT (docs/conventions.md, "Transport"):
 //
 //   nearest hit in triangle (a, b, c) at barycentrics (w, u, v), w = 1 − u − v;
 //   T_i[ch] = w T_i[ch](a) + u T_i[ch](b) + v T_i[ch](c)     (interpolated transport)

@@ -1,4 +1,4 @@
-// transport.cl: per-vertex PRT transport in SH (see DESIGN.md, "Transport").
+// transport.cl: per-vertex PRT transport in SH (see docs/conventions.md, "Transport").
 //
 // For a vertex p with normal n,
 //   T_i(p) = (1/π) ∫ V(p, ω) max(0, n·ω) Y_i(ω) dω.

@@ -1,6 +1,6 @@
 // The bad-input corpus (tests/corpus/, written by corpus/make_corpus.cpp): empty,
 // truncated, garbage and lying files of every supported format, fed to the CLI.
-// The contract (DESIGN.md "Errors"): no crash, no hang, exit code 1 (2 for usage),
+// The contract (docs/conventions.md "Errors"): no crash, no hang, exit code 1 (2 for usage),
 // an error line "prtbake: error: <file>: ..." and no output file, not even a temp.
 #include <catch2/catch.hpp>
 

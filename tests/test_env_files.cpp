@@ -29,7 +29,7 @@ const double kPi = 3.14159265358979323846;
 using Fn = std::function<Rgb(const double*)>;
 
 // Pixels in the file's own layout, written with the direction each format
-// defines: DESIGN.md's face table for face images, ImfEnvmap.h for OpenEXR
+// defines: docs/conventions.md "Cube faces" for face images, ImfEnvmap.h for OpenEXR
 // envmaps (evaluated at texel centres). Nothing here calls the loader's code.
 struct Planes {
   int w, h;

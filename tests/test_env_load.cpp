@@ -66,7 +66,7 @@ Dir normalized(double x, double y, double z) {
   return {x / r, y / r, z / r};
 }
 
-// DESIGN.md "Cube faces", typed in from the text (independent of standardCubeBases):
+// docs/conventions.md "Cube faces", typed in from the text (independent of standardCubeBases):
 // +X (1, −v, −u) · −X (−1, −v, u) · +Y (u, 1, v) · −Y (u, −1, −v) · +Z (u, −v, 1) · −Z (−u, −v, −1).
 Dir designFaceDirection(int face, int row, int col, int n) {
   const double u = 2.0 * (col + 0.5) / n - 1.0, v = 2.0 * (row + 0.5) / n - 1.0;
@@ -158,7 +158,7 @@ void writeFaceDir(const std::string& dir, int n, const std::string& ext,
 }
 
 // Where face f's cell lies in a cross (in face units) and whether it is turned 180°:
-// the layouts as README/DESIGN describe them.
+// the layouts as README and docs/conventions.md ("Environment inputs") describe them.
 struct Cell {
   int col, row;
   bool rotate180;
@@ -207,7 +207,7 @@ Dir firstMoment(const EnvMap& env, int k) {
 
 double length(const Dir& d) { return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]); }
 
-// The lat-long texel that contains direction d (DESIGN.md's lat-long inverted:
+// The lat-long texel that contains direction d (docs/conventions.md "Lat-long" inverted:
 // λ = atan2(x, z), φ = asin(y)); mirror = true negates λ (a wrong orientation).
 size_t latLongTexelOf(const EnvMap& ll, const Dir& d, bool mirror = false) {
   const double lambda = (mirror ? -1 : 1) * std::atan2(d[0], d[2]), phi = std::asin(std::max(-1.0, std::min(1.0, d[1])));
@@ -247,7 +247,7 @@ std::string inputErrorOf(F&& f) {
 
 // ---------------------------------------------------------------- layouts
 
-TEST_CASE("Face directories load in DESIGN.md orientation from EXR, half EXR, PNG and HDR", "[env_load]") {
+TEST_CASE("Face directories load in docs/conventions.md orientation from EXR, half EXR, PNG and HDR", "[env_load]") {
   const int n = 8;
   const std::string base = test::tempDir("env-faces");
   struct Variant {
@@ -325,7 +325,7 @@ TEST_CASE("The direction check fails for a face stored flipped", "[env_load]") {
   CHECK(maxDirectionError(loadEnvironment(dir), decodeFloat) > 0.5);
 }
 
-TEST_CASE("Crosses and strips load in DESIGN.md orientation", "[env_load]") {
+TEST_CASE("Crosses and strips load in docs/conventions.md orientation", "[env_load]") {
   const int n = 8;
   const std::string dir = test::tempDir("env-cross");
   struct Case {
@@ -686,8 +686,8 @@ TEST_CASE("8-bit images use the exact sRGB EOTF, grey and alpha become RGB", "[e
 }
 
 TEST_CASE("The games202 preset reproduces the framework's face order, table and 2.2 gamma", "[env_load]") {
-  // Each file is a constant code (10·(k + 1) for the file named in DESIGN.md's
-  // order k) so we can see which file landed in which face.
+  // Each file is a constant code (10·(k + 1) for the file of face k in
+  // docs/conventions.md "Cube faces") so we can see which file landed in which face.
   const int n = 4;
   const std::string dir = test::tempDir("env-g202");
   for (int f = 0; f < 6; ++f) {
@@ -699,7 +699,7 @@ TEST_CASE("The games202 preset reproduces the framework's face order, table and 
   const EnvMap env = loadEnvironment(dir, opt);
   CHECK(env.layoutName == "games202");
   REQUIRE(env.width == n);
-  // Load order negx, posx, posy, negy, posz, negz = DESIGN.md indices 1, 0, 2, 3, 4, 5.
+  // Load order negx, posx, posy, negy, posz, negz = docs/conventions.md face indices 1, 0, 2, 3, 4, 5.
   const int fileOfFace[6] = {1, 0, 2, 3, 4, 5};
   const double kGammaTol = 1e-6;  // pow in double, stored as float
   for (int k = 0; k < 6; ++k) {
@@ -708,7 +708,7 @@ TEST_CASE("The games202 preset reproduces the framework's face order, table and 
     const double want = std::pow(10.0 * (fileOfFace[k] + 1) / 255.0, 2.2);
     CHECK(std::abs(env.rgb[3 * size_t(k) * n * n] - want) < kGammaTol);
   }
-  // Directions: DESIGN.md "GAMES202 compatibility" table, (X; Y; Z) per load index,
+  // Directions: docs/conventions.md "GAMES202 compatibility" table, (X; Y; Z) per load index,
   // u from the column, v from the row. Same formula in double on both sides: a few ulps.
   const double kSameFormulaTol = 1e-14;
   const double table[6][3][3] = {

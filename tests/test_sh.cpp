@@ -15,7 +15,7 @@ namespace {
 // Hard-coded and recurrence evaluate the same polynomials in a different order of
 // operations: they agree to a few ulps of double.
 constexpr double kHardVsRecurrenceTol = 1e-13;
-// DESIGN.md prints the constants to 6 decimals: up to 1.6e-6 relative rounding.
+// docs/conventions.md "SH basis" prints the constants to 6 decimals: up to 1.6e-6 relative rounding.
 constexpr double kTableTol = 2e-6;
 const double kPi = 3.14159265358979323846;
 }  // namespace
@@ -34,7 +34,7 @@ TEST_CASE("SH hard-coded polynomials equal the recurrence", "[sh]") {
   }
 }
 
-TEST_CASE("SH matches the DESIGN.md table and closed forms on the axes and poles", "[sh]") {
+TEST_CASE("SH matches the docs/conventions.md table and closed forms on the axes and poles", "[sh]") {
   // Closed forms: Y_l0(±z) = (±1)^l √((2l+1)/(4π)) and every m ≠ 0 vanishes at the poles;
   // on the equator Y_l,±l of (1,0,0) and (0,1,0) follow from (x+iy)^l.
   const int order = 16;
@@ -47,7 +47,7 @@ TEST_CASE("SH matches the DESIGN.md table and closed forms on the axes and poles
         REQUIRE(y[shIndex(l, m)] == Approx(expect).margin(1e-15).epsilon(1e-13));
       }
   }
-  // DESIGN.md table at ±x, ±y.
+  // The docs/conventions.md "SH basis" table at ±x, ±y.
   const double c1 = 0.488603, c2a = 1.092548, c2c = 0.546274, c2b = 0.315392;
   shEval(3, 1, 0, 0, y.data());
   CHECK(y[3] == Approx(-c1).epsilon(kTableTol));

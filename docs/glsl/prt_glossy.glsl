@@ -2,7 +2,7 @@
 // (WebGL 2) and GLSL 3.30+. The test tests/test_glossy_glsl.cpp runs these functions in
 // headless Chromium and compares them with prtbake's own values.
 //
-// Conventions (DESIGN.md): real orthonormal SH with the Condon–Shortley phase, index
+// Conventions (docs/conventions.md "SH basis"): real orthonormal SH with the Condon–Shortley phase, index
 // i = l(l+1)+m, evaluated on unit directions of the bake's world frame.
 //
 // Shading of a vertex (or pixel) with transfer matrix M (n_out² × n_in²), environment

@@ -87,7 +87,7 @@ void checkPngShape(int width, int height, int channels, size_t samples) {
     throw OutputError("png", "bad image dimensions");
 }
 
-// The texel of an n × n cube (DESIGN.md's faces and orientation) whose cell holds unit-ish
+// The texel of an n × n cube (docs/conventions.md "Cube faces") whose cell holds unit-ish
 // direction d: face by the major axis, then (u, v) on that face's basis.
 size_t cubeTexelOf(const std::array<CubeFaceBasis, 6>& faces, int n, const double d[3]) {
   int face = 0;

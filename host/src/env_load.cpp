@@ -1,6 +1,6 @@
-// loadEnvironment: from files on disk to an EnvMap in DESIGN.md's conventions.
+// loadEnvironment: from files on disk to an EnvMap in the conventions of docs/conventions.md.
 //
-// Layouts (the face orientations are DESIGN.md's "Cube faces" unless said otherwise):
+// Layouts (the face orientations are docs/conventions.md "Cube faces" unless said otherwise):
 //   directory   six faces posx/negx/posy/negy/posz/negz.{exr,hdr,png,jpg}
 //   games202    the same directory, read the way the GAMES202 homework-2 framework
 //               reads it (its face order, its direction table, (c/255)^2.2)
@@ -38,7 +38,7 @@ namespace {
 using detail::Image;
 using detail::LdrDecode;
 
-// DESIGN.md's face order and the file names that hold them.
+// The face order of docs/conventions.md "Cube faces" and the file names that hold them.
 const std::array<const char*, 6> kFaceNames = {"posx", "negx", "posy", "negy", "posz", "negz"};
 const std::array<const char*, 4> kFaceExtensions = {".exr", ".hdr", ".png", ".jpg"};
 

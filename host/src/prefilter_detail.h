@@ -120,7 +120,7 @@ void forEachBinEntry(const BinTree& tree, uint32_t entry, const std::function<vo
 std::vector<double> evaluateCutsReference(const BinTree& tree, const TileCuts& cuts, const TileTree& tiles,
                                           PrefilterLobe lobe, double alpha, int face, const std::vector<int>& leaves);
 
-// Face (0..5) and u, v ∈ [−1, 1] of a direction in DESIGN.md's standard cube.
+// Face (0..5) and u, v ∈ [−1, 1] of a direction in the standard cube (docs/conventions.md "Cube faces").
 void cubeFaceUv(const double d[3], int* face, double* u, double* v);
 
 }  // namespace prtbake::detail

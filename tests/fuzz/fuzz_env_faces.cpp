@@ -1,5 +1,6 @@
-// Fuzz target: a directory of six cube faces through loadEnvironment, with DESIGN.md's
-// orientation (`--layout faces`) or the GAMES202 framework's (`--layout games202`).
+// Fuzz target: a directory of six cube faces through loadEnvironment, with the
+// orientation of docs/conventions.md "Cube faces" (`--layout faces`) or the GAMES202
+// framework's (`--layout games202`).
 // Input: byte 0 picks the options (bit 0: games202; bit 1: --clamp-invalid; bits 2-3:
 // the file extension, which only decides whether the face is found; bit 4: compact
 // storage, as `prtbake env` loads); then six parts

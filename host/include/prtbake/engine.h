@@ -1,8 +1,9 @@
 // prtbake/engine.h: lighting in the conventions of the engines that load it.
 //
 // prtbake's own SH are radiance coefficients c_i = ∫ L Y_i dω of the real orthonormal basis with
-// the Condon–Shortley phase, index i = l(l+1)+m, in the environment's world frame (DESIGN.md).
-// Each engine wants something else (DESIGN.md "Engine SH conventions"); the conversions below
+// the Condon–Shortley phase, index i = l(l+1)+m, in the environment's world frame
+// (docs/conventions.md "SH basis"). Each engine wants something else (docs/conventions.md
+// "Engine SH conventions"); the conversions below
 // take order-3 radiance coefficients (higher orders are truncated) and give the 27 numbers the
 // engine reads, coefficient-major ([c0.r, c0.g, c0.b, c1.r, …]). Â_l = (π, 2π/3, π/4) are the
 // clamped-cosine factors (sh.h), E_i = Â_l c_i the irradiance coefficients.
@@ -47,7 +48,7 @@ std::string threejsLightProbeJson(const EngineSh& sh, const std::string& extra);
 std::string filamentShText(const EngineSh& sh);
 
 // KTX 1.1 cube with every level of `levels` (each 6 × size² RGB, faces +X … −Z, row 0 on top:
-// DESIGN.md's cube convention, which is Filament's), GL_R11F_G11F_B10F packed
+// docs/conventions.md "Cube faces", which is Filament's), GL_R11F_G11F_B10F packed
 // (GL_UNSIGNED_INT_10F_11F_11F_REV) as cmgen writes it; key "sh" (when `sh` is given) holds the
 // 27 numbers as Filament's createIblFromKtx1 parses them. Values above the format's maximum
 // (65024 red/green, 64512 blue) are clamped and counted in *clamped; negatives become 0.
@@ -68,7 +69,8 @@ std::string png8Bytes(int width, int height, int channels, const std::vector<uin
 // polynomial (fields x, y, z, xx, yy, zz, yz, zx, xy, each RGB).
 EngineSh babylonIrradianceSh(const ShCoeffs& radiance);
 EngineSh babylonEnvPolynomial(const ShCoeffs& radiance);
-// One level of a cube (6 × n² RGB, DESIGN.md's faces) as the six RGBD 8-bit PNGs Babylon reads
+// One level of a cube (6 × n² RGB, docs/conventions.md "Cube faces") as the six RGBD 8-bit
+// PNGs Babylon reads
 // (faces +X … −Z of its frame, bottom row first): rgb^(1/2.2) · D with D = ⌊255 / max⌋ / 255 in
 // alpha, so values up to 255 are kept; channels above are clamped and counted in *clamped.
 std::vector<std::string> babylonRgbdFaces(int n, const std::vector<float>& rgb, long long* clamped = nullptr);

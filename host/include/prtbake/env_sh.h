@@ -98,7 +98,7 @@ ShCoeffs truncateSh(const ShCoeffs& c, int order);
 // Evaluates Σ c_i Y_i(ω) for each channel at a unit direction.
 Rgb evalSh(const ShCoeffs& c, double x, double y, double z);
 
-// Writers. The JSON states the conventions (DESIGN.md "Outputs"); `meta` is
+// Writers. The JSON states the conventions (docs/conventions.md "Environment SH"); `meta` is
 // merged in (parameters, input hashes, timings; a JSON object as text).
 void writeShJson(const std::string& path, const ShCoeffs& c, const std::string& metaJson);
 // Reads a JSON written by writeShJson (for rotate). Throws InputError.

@@ -6,10 +6,11 @@
 //
 // Cube: face f, row r (0 = top), column c; u = 2(c+0.5)/N − 1, v = 2(r+0.5)/N − 1;
 //   dirWorld = normalize(u·axisU[f] + v·axisV[f] + axisN[f]). The default bases are
-//   DESIGN.md's (+X (1,−v,−u), −X (−1,−v,u), +Y (u,1,v), −Y (u,−1,−v), +Z (u,−v,1),
-//   −Z (−u,−v,−1)); the games202 preset carries that framework's own table. The
-//   texel [u0,u1]×[v0,v1] subtends f(u0,v0) − f(u0,v1) − f(u1,v0) + f(u1,v1) sr with
-//   f(a,b) = atan2(ab, √(a²+b²+1)), for any orthonormal basis.
+//   those of docs/conventions.md "Cube faces" (+X (1,−v,−u), −X (−1,−v,u), +Y (u,1,v),
+//   −Y (u,−1,−v), +Z (u,−v,1), −Z (−u,−v,−1)); the games202 preset carries that
+//   framework's own table. The texel [u0,u1]×[v0,v1] subtends
+//   f(u0,v0) − f(u0,v1) − f(u1,v0) + f(u1,v1) sr with f(a,b) = atan2(ab, √(a²+b²+1)),
+//   for any orthonormal basis.
 // Lat-long: W×H, row 0 at the top; texel centre λ = −2π((c+0.5)/W − 0.5),
 //   φ = π(0.5 − (r+0.5)/H); dirWorld = (sin λ cos φ, sin φ, cos λ cos φ) (OpenEXR's
 //   LatLongMap axes); solid angle (2π/W)(sin φ_top − sin φ_bottom).
@@ -39,7 +40,7 @@ struct CubeFaceBasis {
   std::array<double, 3> axisU, axisV, axisN;
 };
 
-// DESIGN.md's face order +X, −X, +Y, −Y, +Z, −Z and orientation.
+// The face order +X, −X, +Y, −Y, +Z, −Z and orientation of docs/conventions.md "Cube faces".
 std::array<CubeFaceBasis, 6> standardCubeBases();
 
 struct EnvMap {

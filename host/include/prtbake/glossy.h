@@ -1,4 +1,4 @@
-// prtbake/glossy.h: glossy PRT, per-vertex transfer matrices (DESIGN.md, "Glossy transfer").
+// prtbake/glossy.h: glossy PRT, per-vertex transfer matrices (docs/conventions.md, "Glossy transfer").
 //
 // For vertex p with unit normal n, the transfer matrix M(p), n_out² × n_in², maps the
 // environment's radiance coefficients l (order n_in) to the SH coefficients (order n_out)
@@ -150,7 +150,7 @@ struct GlossyLobe {
 //   ĝ_l = (s+1) ∫_0^1 t^s P_l(t) dt,  ĝ_0 = 1, ĝ_1 = (s+1)/(s+2), ĝ_l = ĝ_{l−2} (s−l+2)/(s+l+1).
 // s = 1 is the clamped cosine over π (ĝ_l = Â_l/π). s ≥ 0.
 GlossyLobe phongLobe(double exponent, int order);
-// The GGX lobe about R as split-sum prefiltering takes it (N = V = R, DESIGN.md
+// The GGX lobe about R as split-sum prefiltering takes it (N = V = R, docs/conventions.md
 // "Prefiltered specular"): G(t) ∝ D_α(h) max(0, t) with h·R = cos(θ/2), t = cos θ, α = r²,
 // normalised to ∫ G dω = 1; ĝ_l by adaptive Gauss–Legendre quadrature (exact to 1e-10).
 // fitError: the relative L2 error of the lobe truncated after `order` bands,

@@ -1,6 +1,6 @@
 // prtbake/lut.h: split-sum BRDF lookup tables for image-based lighting.
 //
-// Conventions (DESIGN.md "BRDF LUT"): μ = N·V in [0, 1], perceptual roughness r in
+// Conventions (docs/conventions.md "BRDF LUT"): μ = N·V in [0, 1], perceptual roughness r in
 // [0, 1] with α = r² (or α = r with alphaDirect). For f0 = 1 Fresnel-Schlick split
 // F = (1 − F_c) + F_c with F_c = (1 − V·H)^5, the table holds
 //   A(μ, r) = ∫ f_r (1 − F_c)/F cos θ_l dω_l,   B(μ, r) = ∫ f_r F_c/F cos θ_l dω_l,

@@ -1,7 +1,7 @@
 // prtbake/mesh.h: triangle meshes for the transport product.
 //
-// A Mesh is an indexed triangle list in the input's world frame (DESIGN.md, "World
-// frame"): glTF node transforms are applied (normals by the inverse transpose), OBJ
+// A Mesh is an indexed triangle list in the input's world frame (docs/conventions.md,
+// "World frame"): glTF node transforms are applied (normals by the inverse transpose), OBJ
 // is taken as is. Per vertex: position, shading normal (unit, or zero where none
 // could be defined), and linear albedo ρ (RGB; grey when r = g = b).
 #pragma once

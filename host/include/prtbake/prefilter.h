@@ -1,13 +1,13 @@
 // prtbake/prefilter.h: prefiltered specular environments (the split sum's first half).
 //
-// Definition (DESIGN.md "Prefiltered specular"): for roughness r (α = r² unless a
+// Definition (docs/conventions.md "Prefiltered specular"): for roughness r (α = r² unless a
 // schedule says otherwise) level i of the chain holds, for each texel direction R,
 //   P(R) = ∫ L(l) k(R·l) dl / ∫ k(R·l) dl,
 //   k(μ) = D_α(h) · max(0, μ),  μ = R·l,  h = normalize(R + l),  N·H = √((1 + μ)/2),
 // with D the lobe's distribution: GGX D ∝ 1/((N·H)²(α² − 1) + 1)², Charlie
 // D ∝ sin^(1/α)θ_h (α clamped to kLutClothAlphaMin, as the LUT's cloth table), or for
 // `lambertian` k = max(0, μ), which makes P the irradiance/π. Constant factors of D cancel
-// in the ratio. Faces, order and orientation are DESIGN.md's cube convention
+// in the ratio. Faces, order and orientation are docs/conventions.md "Cube faces"
 // (+X, −X, +Y, −Y, +Z, −Z; row 0 at the top), the OpenGL/Vulkan/KTX one.
 //
 // Method (docs/prefilter.md): the environment's texels are gathered into a quadtree of
@@ -144,7 +144,7 @@ std::vector<double> prefilterBruteForce(const EnvMap& env, PrefilterLobe lobe, d
 // peak; lambertian: k(1) = 1). α as used (no floor or clamp applied here).
 double prefilterLobeWeight(PrefilterLobe lobe, double alpha, double mu);
 
-// Cube texel (face, row, col) of an n×n cube in DESIGN.md's convention seen in unit
+// Cube texel (face, row, col) of an n×n cube in docs/conventions.md "Cube faces" seen in unit
 // direction `d`: the face whose axis is largest, then u, v. Returns face·n² + row·n + col.
 size_t cubeTexelIndex(int n, const double d[3]);
 // Unit direction of the centre of texel (face, row, col) of an n×n standard cube.

@@ -58,7 +58,7 @@ void writePreviewPng(const std::string& path, const LinearImage& image, const To
 
 // --- mesh preview: the mesh lit by the baked transport, as a real-time engine shades it ---
 //
-// Per-vertex transport coefficients (DESIGN.md "Transport"): grey [V, n²] or RGB [V, 3, n²],
+// Per-vertex transport coefficients (docs/conventions.md "Transport"): grey [V, n²] or RGB [V, 3, n²],
 // vertex-major, as written by `prtbake transport` (.npy) and TransportResult::coeffs.
 struct TransportCoeffs {
   int order = 0;           // n: n² coefficients per channel

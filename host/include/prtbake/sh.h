@@ -1,6 +1,6 @@
 // prtbake/sh.h: real spherical harmonics, double-precision reference.
 //
-// Conventions (fixed, see DESIGN.md): real, orthonormal (∫ Y_i Y_j dω = δ_ij),
+// Conventions (fixed, see docs/conventions.md "SH basis"): real, orthonormal (∫ Y_i Y_j dω = δ_ij),
 // Condon–Shortley phase, evaluated on a unit direction (x, y, z) of the input's
 // world frame; index i = l(l+1) + m; "order n" means bands 0..n-1, n² coefficients.
 //

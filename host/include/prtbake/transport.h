@@ -1,4 +1,4 @@
-// prtbake/transport.h: per-vertex PRT transport in SH (DESIGN.md, "Transport").
+// prtbake/transport.h: per-vertex PRT transport in SH (docs/conventions.md, "Transport").
 //
 // For vertex p with unit normal n and SH order N (N² coefficients, index l(l+1)+m):
 //   T_i(p) = (1/π) ∫ V(p, ω) max(0, n·ω) Y_i(ω) dω           (shadowed)
