@@ -346,7 +346,7 @@ IblPackageResult writeIblPackage(Runtime& rt, const EnvMap& env, const std::stri
     for (int i = 0; i < 9; ++i) rad.push_back(result.radiance.rgb[size_t(i)]);
     side["radiance_sh"] = {{"coefficients", rad},
                            {"convention", "c_i = integral of L Y_i, real orthonormal SH with the Condon-Shortley phase, "
-                                          "i = l(l+1)+m (DESIGN.md); every target's SH are made from these"}};
+                                          "i = l(l+1)+m (prtbake docs/conventions.md, SH basis); every target's SH are made from these"}};
     nlohmann::json targets = nlohmann::json::object();
     for (EngineTarget t : o.targets) {
       switch (t) {
