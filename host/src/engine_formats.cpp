@@ -8,6 +8,7 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 
+#include "constants.h"
 #include "png_chunks.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/engine.h"
@@ -21,7 +22,6 @@ extern "C" unsigned char* stbi_zlib_compress(unsigned char* data, int data_len, 
 namespace prtbake {
 namespace {
 
-const double kPi = 3.14159265358979323846;
 constexpr int kEngineShCount = 9;
 
 // c_i of the first 9 coefficients (missing ones are 0), channel-minor.

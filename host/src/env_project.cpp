@@ -6,6 +6,7 @@
 #include <memory>
 #include <mutex>
 
+#include "constants.h"
 #include "kernel_options.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
@@ -13,8 +14,6 @@
 
 namespace prtbake {
 namespace {
-
-const double kPi = 3.14159265358979323846;
 
 void checkOrder(int order) {
   if (order < 1 || order > kMaxShOrder)

@@ -4,16 +4,13 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "constants.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/env_sh.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 
 namespace prtbake {
-namespace {
-const double kPi = 3.14159265358979323846;
-}
-
 const char* toString(ShQuantity q) {
   switch (q) {
     case ShQuantity::Radiance: return "radiance";

@@ -2,13 +2,13 @@
 #include <cmath>
 #include <cstring>
 
+#include "constants.h"
 #include "env_validate.h"
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 // f(a, b) = atan2(ab, √(a²+b²+1)): the solid angle of the rectangle [0,a]×[0,b]
 // on the face plane at distance 1, with sign (Girard / the standard cube-map identity).

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "constants.h"
 #include "gauss_legendre.h"
 #include "glossy_detail.h"
 #include "kernel_options.h"
@@ -18,7 +19,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 

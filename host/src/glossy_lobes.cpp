@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "constants.h"
 #include "gauss_legendre.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
@@ -14,7 +15,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 // P_0..P_{n−1} at t.
 void legendre(int n, double t, double* p) {

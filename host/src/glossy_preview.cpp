@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "constants.h"
 #include "kernel_options.h"
 #include "preview_camera.h"
 #include "prtbake/bvh.h"
@@ -15,7 +16,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 constexpr size_t kLocalSize = 64;

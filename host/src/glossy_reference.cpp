@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "constants.h"
 #include "gauss_legendre.h"
 #include "glossy_detail.h"
 #include "prtbake/error.h"
@@ -12,7 +13,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 struct Hit {
   double t, u, v;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "constants.h"
 #include "kernel_options.h"
 #include "lut_detail.h"
 #include "lut_sampling.clh"
@@ -16,8 +17,6 @@
 
 namespace prtbake {
 namespace {
-
-const double kPi = 3.14159265358979323846;
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <thread>
 
+#include "constants.h"
 #include "gauss_legendre.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
@@ -30,8 +31,6 @@ std::vector<LutPoint> texelPoints(int n);
 }  // namespace detail
 
 namespace {
-
-const double kPi = 3.14159265358979323846;
 
 const detail::GaussRule& gauss8() {
   static const detail::GaussRule g = detail::gaussLegendre(8);

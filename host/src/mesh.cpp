@@ -5,12 +5,12 @@
 #include <cmath>
 #include <string>
 
+#include "constants.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 std::string lowerExtension(const std::string& path) {
   const size_t dot = path.find_last_of('.');
@@ -192,7 +192,7 @@ Mesh makeTorusKnot(int segments, int sides, int p, int q) {
   // The (p, q) torus knot r(t) = ((2 + cos qt) cos pt, (2 + cos qt) sin pt, sin qt), and a
   // tube of radius 0.4 around it: ring i is a circle in the plane ⟂ T (the tangent), in
   // the Frenet frame (N from the curve's second derivative, B = T × N).
-  const double kPi = 3.14159265358979323846, radius = 0.4;
+  const double radius = 0.4;
   auto curve = [&](double t, double* c) {
     const double r = 2 + std::cos(q * t);
     c[0] = r * std::cos(p * t), c[1] = r * std::sin(p * t), c[2] = std::sin(q * t);

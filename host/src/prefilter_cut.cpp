@@ -39,6 +39,7 @@
 #include <functional>
 #include <thread>
 
+#include "constants.h"
 #include "prefilter_detail.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
@@ -46,7 +47,6 @@
 namespace prtbake {
 namespace {
 
-const double kPi = 3.14159265358979323846;
 const double kHalfPi = kPi / 2;
 
 // A bin at least this many times (its radius + the tile's) away from a tile may be taken as

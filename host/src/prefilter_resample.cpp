@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <thread>
 
+#include "constants.h"
 #include "kernel_options.h"
 #include "prefilter_detail.h"
 #include "radical_inverse.h"
@@ -17,7 +18,6 @@
 namespace prtbake {
 namespace {
 
-const double kPi = 3.14159265358979323846;
 // Subsamples per side of an output texel when resampling: at most this many.
 constexpr int kMaxSupersample = 16;
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "constants.h"
 #include "png_chunks.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -15,7 +16,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 void fillRect(LinearImage& img, int x0, int y0, int x1, int y1, float v) {
   x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, img.width), y1 = std::min(y1, img.height);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "constants.h"
 #include "kernel_options.h"
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
@@ -14,7 +15,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "constants.h"
 #include "prefilter_detail.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
@@ -11,7 +12,6 @@
 namespace prtbake {
 namespace {
 
-const double kPi = 3.14159265358979323846;
 constexpr int kSpheres = 6;
 
 // Bilinear lookup of a level at unit direction d (texels clamped at face edges).

@@ -5,12 +5,12 @@
 #include <cstdint>
 #include <string>
 
+#include "constants.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 std::array<double, 9> mul(const std::array<double, 9>& a, const std::array<double, 9>& b) {
   std::array<double, 9> c{};

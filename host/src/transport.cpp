@@ -8,6 +8,7 @@
 #include <functional>
 #include <future>
 
+#include "constants.h"
 #include "kernel_options.h"
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
@@ -17,7 +18,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "constants.h"
 #include "gltf_common.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -16,7 +17,6 @@
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 std::string lowerExt(const std::string& path) {
   const size_t dot = path.find_last_of('.');

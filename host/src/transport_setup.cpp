@@ -6,13 +6,13 @@
 #include <numeric>
 #include <tuple>
 
+#include "constants.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 #include "radical_inverse.h"
 
 namespace prtbake {
 namespace {
-const double kPi = 3.14159265358979323846;
 
 uint64_t splitmix64(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
