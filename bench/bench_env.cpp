@@ -22,7 +22,7 @@
 #include <unistd.h>
 #include <vector>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/exr.h"
 #include "prtbake/runtime.h"
 

@@ -5,7 +5,7 @@
 
 #include "cli.h"
 #include "jobs.h"
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 #include "prtbake/runtime.h"

@@ -12,6 +12,7 @@
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
+#include "prtbake/preview.h"
 #include "prtbake/limits.h"
 #include "prtbake/mesh.h"
 #include "prtbake/runtime.h"

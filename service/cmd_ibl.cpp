@@ -5,7 +5,7 @@
 
 #include "cli.h"
 #include "jobs.h"
-#include "prtbake/engine.h"
+#include "prtbake/ibl.h"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
 

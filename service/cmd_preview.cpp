@@ -8,7 +8,7 @@
 #include "cli.h"
 #include "glossy_cli.h"
 #include "jobs.h"
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
 #include "prtbake/mesh.h"

@@ -2,7 +2,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/sh_rotate.h"
 

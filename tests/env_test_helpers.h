@@ -6,7 +6,7 @@
 #include <cmath>
 #include <functional>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/envmap.h"
 
 namespace prtbake::test {

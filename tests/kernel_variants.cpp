@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <string>
 
-#include "kernel_options.h"
+#include "core/kernel_options.h"
 #include "prtbake/glossy.h"
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"

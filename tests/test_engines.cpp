@@ -9,11 +9,11 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "prtbake/engine.h"
+#include "prtbake/ibl.h"
 #include "prtbake/envmap.h"
 #include "prtbake/lut.h"
 #include "prtbake/preview.h"
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/sh.h"
 #include "test_common.h"

@@ -12,7 +12,7 @@
 #include <fstream>
 #include <functional>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
 #include "prtbake/sh.h"

@@ -27,8 +27,8 @@
 #include <string>
 #include <vector>
 
-#include "image_read.h"
-#include "prtbake/env_sh.h"
+#include "io/image_read.h"
+#include "prtbake/env.h"
 #include "prtbake/envmap.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"

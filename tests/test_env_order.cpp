@@ -5,7 +5,7 @@
 #include <cmath>
 #include <functional>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/sh.h"
 #include "env_test_helpers.h"
 #include "test_common.h"

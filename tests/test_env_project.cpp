@@ -6,7 +6,7 @@
 #include <cmath>
 #include <functional>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 #include "env_test_helpers.h"

@@ -9,6 +9,7 @@
 
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
+#include "prtbake/preview.h"
 #include "prtbake/mesh.h"
 #include "prtbake/sh.h"
 #include "shard_test_helpers.h"

@@ -9,8 +9,8 @@
 #include <cstring>
 
 #include "env_test_helpers.h"
-#include "gauss_legendre.h"
-#include "prefilter_detail.h"
+#include "core/gauss_legendre.h"
+#include "prefilter/prefilter_detail.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
 #include "prtbake/prefilter.h"

@@ -13,7 +13,7 @@
 #include <ImfHeader.h>
 #include <ImfOutputFile.h>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/exr.h"
 #include "prtbake/preview.h"
 #include "prtbake/sh.h"

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/preview.h"
 #include "prtbake/transport.h"

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "gauss_legendre.h"
+#include "core/gauss_legendre.h"
 #include "prtbake/sh.h"
 #include "test_common.h"
 

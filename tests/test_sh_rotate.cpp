@@ -4,7 +4,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 #include "prtbake/sh_rotate.h"

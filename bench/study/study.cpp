@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/envmap.h"
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"

@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <exception>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/envmap.h"
 #include "prtbake/runtime.h"
 

@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "fuzz_target.h"
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 
 using namespace prtbake;
 

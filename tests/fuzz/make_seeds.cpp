@@ -16,7 +16,7 @@
 #include "jobs.h"
 #include "manifest.h"
 #include "prtbake/atomic_file.h"
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/exr.h"
 #include "prtbake/glossy.h"
 #include "prtbake/transport.h"

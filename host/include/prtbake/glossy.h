@@ -37,9 +37,8 @@
 #include <string>
 #include <vector>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/mesh.h"
-#include "prtbake/preview.h"
 #include "prtbake/runtime.h"
 #include "prtbake/transport.h"
 
@@ -308,17 +307,6 @@ std::string cpcaSidecarJson(const CpcaResult& c, const std::string& npzPath);  /
 // Reads a .npz written by cpcaNpzBytes (InputError otherwise).
 CpcaResult readCpcaNpz(const std::string& path, int* orderOut, int* orderIn, int* channels);
 
-// --- preview: the mesh shaded view-dependently with glossy transfer ---
-struct GlossyPreviewOptions {
-  MeshPreviewOptions view;    // size, camera, light rotation, background
-  bool normalised = true;     // divide by glossyHorizonNorm (the furnace shows the albedo)
-};
-// Per vertex t_v = M_v l (rotated lighting), interpolated with barycentrics per pixel with
-// the normal; R = reflect(view, n); L = ρ(p) × shadeGlossy(lobe, t, R). `matrices` holds
-// matrices (V × channels × n_out² × n_in²) or, with `cpca`, is empty and the CPCA
-// reconstruction is used.
-MeshPreviewResult renderGlossyPreview(Runtime& rt, const Mesh& mesh, const GlossyMatrices& matrices,
-                                      const CpcaResult* cpca, const ShCoeffs& radiance, const GlossyLobe& lobe,
-                                      const GlossyPreviewOptions& options);
+// The glossy preview (renderGlossyPreview) is declared in preview.h.
 
 }  // namespace prtbake

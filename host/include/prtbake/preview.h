@@ -11,12 +11,14 @@
 #include <utility>
 #include <vector>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/env.h"
 #include "prtbake/envmap.h"
+#include "prtbake/glossy.h"
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/runtime.h"
+#include "prtbake/transport.h"
 
 namespace prtbake {
 
@@ -58,28 +60,7 @@ void writePreviewPng(const std::string& path, const LinearImage& image, const To
 
 // --- mesh preview: the mesh lit by the baked transport, as a real-time engine shades it ---
 //
-// Per-vertex transport coefficients (docs/conventions.md "Transport"): grey [V, n²] or RGB [V, 3, n²],
-// vertex-major, as written by `prtbake transport` (.npy) and TransportResult::coeffs.
-struct TransportCoeffs {
-  int order = 0;           // n: n² coefficients per channel
-  int channels = 1;        // 1 (grey) or 3 (RGB)
-  size_t vertexCount = 0;
-  std::vector<float> coeffs;  // vertexCount × channels × order²
-};
-
-// Reads a transport .npy (float32 little-endian, C order, shape [V, n²] or [V, 3, n²]).
-// Throws InputError(path, ...) for a missing or malformed file, another dtype or
-// shape, a coefficient count that is not a square, or, when expectedVertices > 0,
-// a vertex count other than the mesh's.
-TransportCoeffs readTransportNpy(const std::string& path, size_t expectedVertices = 0);
-
-// Reads the transport back from a glTF copy written by writeTransportGltf (the
-// _PRT_T0, _PRT_T1, … or _PRT_R*/_PRT_G*/_PRT_B* VEC4 attributes of every primitive),
-// for `mesh` loaded from that same file. The order is the largest n with n² ≤ 4 ×
-// (attributes per channel): the zero padding of the last attribute is not read.
-// Throws InputError(mesh.sourcePath, ...) when a primitive lacks the attributes or
-// they disagree between primitives.
-TransportCoeffs readTransportGltf(const Mesh& mesh);
+// The transport read back: TransportCoeffs, readTransportNpy, readTransportGltf (transport.h).
 
 struct MeshPreviewOptions {
   int width = 800, height = 600;
@@ -145,5 +126,18 @@ void writePrefilterPreviewPng(const std::string& path, Runtime& rt, const Prefil
 
 // Draws `text` with a small vector font into a linear image at (x, y), scaled.
 void drawText(LinearImage& image, int x, int y, const std::string& text, float value, int scale = 1);
+
+// --- preview: the mesh shaded view-dependently with glossy transfer ---
+struct GlossyPreviewOptions {
+  MeshPreviewOptions view;    // size, camera, light rotation, background
+  bool normalised = true;     // divide by glossyHorizonNorm (the furnace shows the albedo)
+};
+// Per vertex t_v = M_v l (rotated lighting), interpolated with barycentrics per pixel with
+// the normal; R = reflect(view, n); L = ρ(p) × shadeGlossy(lobe, t, R). `matrices` holds
+// matrices (V × channels × n_out² × n_in²) or, with `cpca`, is empty and the CPCA
+// reconstruction is used.
+MeshPreviewResult renderGlossyPreview(Runtime& rt, const Mesh& mesh, const GlossyMatrices& matrices,
+                                      const CpcaResult* cpca, const ShCoeffs& radiance, const GlossyLobe& lobe,
+                                      const GlossyPreviewOptions& options);
 
 }  // namespace prtbake

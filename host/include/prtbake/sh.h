@@ -16,6 +16,7 @@
 #pragma once
 
 #include <array>
+#include <string>
 #include <vector>
 
 namespace prtbake {
@@ -45,5 +46,22 @@ double clampedCosineFactor(int l);
 // the unit normal n: T_i = Â_l/π · Y_i(n). This is the unshadowed transport of an
 // unoccluded vertex (Funk–Hecke), the oracle of the transport tests.
 std::vector<double> clampedCosineProjected(int order, double nx, double ny, double nz);
+
+// What a set of SH coefficients of light holds: radiance L_i, irradiance E_i = Â_l L_i,
+// or E_i/π (docs/conventions.md "Environment SH").
+enum class ShQuantity { Radiance, Irradiance, IrradianceOverPi };
+const char* toString(ShQuantity q);
+// "radiance", "irradiance", "irradiance_over_pi"; throws UsageError naming --quantity on
+// anything else.
+ShQuantity parseQuantity(const std::string& s);
+
+using Rgb = std::array<double, 3>;
+
+// SH coefficients of an RGB quantity.
+struct ShCoeffs {
+  int order = 0;               // n: bands 0..n-1
+  std::vector<Rgb> rgb;        // n² coefficients, index l(l+1)+m
+  ShQuantity quantity = ShQuantity::Radiance;
+};
 
 }  // namespace prtbake

@@ -13,7 +13,7 @@
 #include <array>
 #include <vector>
 
-#include "prtbake/env_sh.h"
+#include "prtbake/sh.h"
 
 namespace prtbake {
 

@@ -186,4 +186,27 @@ void writeTransportGltf(const std::string& path, const Mesh& mesh, const Transpo
 void writeTransportSidecar(const std::string& path, const std::string& inputPath, const Mesh& mesh,
                            const TransportOptions& options, const TransportResult& result);
 
+// Per-vertex transport coefficients (docs/conventions.md "Transport"): grey [V, n²] or RGB [V, 3, n²],
+// vertex-major, as written by `prtbake transport` (.npy) and TransportResult::coeffs.
+struct TransportCoeffs {
+  int order = 0;           // n: n² coefficients per channel
+  int channels = 1;        // 1 (grey) or 3 (RGB)
+  size_t vertexCount = 0;
+  std::vector<float> coeffs;  // vertexCount × channels × order²
+};
+
+// Reads a transport .npy (float32 little-endian, C order, shape [V, n²] or [V, 3, n²]).
+// Throws InputError(path, ...) for a missing or malformed file, another dtype or
+// shape, a coefficient count that is not a square, or, when expectedVertices > 0,
+// a vertex count other than the mesh's.
+TransportCoeffs readTransportNpy(const std::string& path, size_t expectedVertices = 0);
+
+// Reads the transport back from a glTF copy written by writeTransportGltf (the
+// _PRT_T0, _PRT_T1, … or _PRT_R*/_PRT_G*/_PRT_B* VEC4 attributes of every primitive),
+// for `mesh` loaded from that same file. The order is the largest n with n² ≤ 4 ×
+// (attributes per channel): the zero padding of the last attribute is not read.
+// Throws InputError(mesh.sourcePath, ...) when a primitive lacks the attributes or
+// they disagree between primitives.
+TransportCoeffs readTransportGltf(const Mesh& mesh);
+
 }  // namespace prtbake

@@ -1,0 +1,221 @@
+// glTF 2.0 loader (tinygltf): every triangle primitive of the default scene in world space.
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <sys/stat.h>
+
+#include "io/gltf.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/limits.h"
+#include "prtbake/mesh.h"
+
+namespace prtbake {
+
+namespace {
+using Mat4 = std::array<double, 16>;  // column-major, as glTF
+
+Mat4 identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
+
+Mat4 mul(const Mat4& a, const Mat4& b) {
+  Mat4 r{};
+  for (int c = 0; c < 4; ++c)
+    for (int rr = 0; rr < 4; ++rr) {
+      double s = 0;
+      for (int k = 0; k < 4; ++k) s += a[k * 4 + rr] * b[c * 4 + k];
+      r[c * 4 + rr] = s;
+    }
+  return r;
+}
+
+Mat4 nodeMatrix(const tinygltf::Node& n) {
+  if (n.matrix.size() == 16) {
+    Mat4 m;
+    for (int i = 0; i < 16; ++i) m[i] = n.matrix[i];
+    return m;
+  }
+  Mat4 t = identity(), r = identity(), s = identity();
+  if (n.translation.size() == 3) t[12] = n.translation[0], t[13] = n.translation[1], t[14] = n.translation[2];
+  if (n.scale.size() == 3) s[0] = n.scale[0], s[5] = n.scale[1], s[10] = n.scale[2];
+  if (n.rotation.size() == 4) {
+    double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
+    const double len = std::sqrt(x * x + y * y + z * z + w * w);
+    if (len > 0) x /= len, y /= len, z /= len, w /= len;
+    r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
+         2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),     0,
+         2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
+         0, 0, 0, 1};
+  }
+  return mul(t, mul(r, s));
+}
+
+// The per-vertex attributes of one primitive, each with as many elements as POSITION
+// (NORMAL and COLOR_0 are empty when the primitive has none).
+struct PrimitiveAttributes {
+  std::vector<double> position, normal, color;  // 3 per vertex
+  size_t vertexCount = 0;
+};
+
+PrimitiveAttributes readAttributes(const tinygltf::Model& model, const tinygltf::Primitive& prim,
+                                   const std::string& path, const std::string& what) {
+  PrimitiveAttributes a;
+  auto pos = prim.attributes.find("POSITION");
+  if (pos == prim.attributes.end()) throw InputError(path, what + " has no POSITION attribute");
+  a.position = detail::readAccessor(model, pos->second, 3, path, what + " POSITION");
+  a.vertexCount = a.position.size() / 3;
+  if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end())
+    a.normal = detail::readAccessor(model, it->second, 3, path, what + " NORMAL", a.vertexCount);
+  if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
+    a.color = detail::readAccessor(model, it->second, 3, path, what + " COLOR_0", a.vertexCount);
+  return a;
+}
+
+void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, int primIndex, const Mat4& world,
+                  const std::string& path, Mesh& mesh) {
+  const auto& prim = model.meshes[meshIndex].primitives[primIndex];
+  const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+  if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+    return;
+  const std::string what = "mesh " + std::to_string(meshIndex) + " primitive " + std::to_string(primIndex);
+  const PrimitiveAttributes attrs = readAttributes(model, prim, path, what);
+  const std::vector<double>& p = attrs.position;
+  const std::vector<double>& n = attrs.normal;
+  const std::vector<double>& col = attrs.color;
+  const size_t nv = attrs.vertexCount;
+  // glTF 2.0 requires unit normals; a file that breaks this is refused rather than
+  // silently repaired (kNormalLengthTol: looser than float rounding, as the glTF
+  // validator's own check).
+  constexpr double kNormalLengthTol = 1e-2;
+  for (size_t v = 0; v < n.size() / 3; ++v) {
+    const double len = std::sqrt(n[3 * v] * n[3 * v] + n[3 * v + 1] * n[3 * v + 1] + n[3 * v + 2] * n[3 * v + 2]);
+    if (std::isfinite(len) && std::abs(len - 1.0) > kNormalLengthTol)
+      throw InputError(path, what + " NORMAL: vertex " + std::to_string(v) + " has length " + std::to_string(len) +
+                                 " (glTF 2.0 requires unit normals)");
+  }
+  std::array<double, 3> base{1, 1, 1};
+  if (prim.material >= 0 && prim.material < int(model.materials.size())) {
+    const auto& f = model.materials[prim.material].pbrMetallicRoughness.baseColorFactor;
+    if (f.size() >= 3) base = {f[0], f[1], f[2]};
+  }
+  // Corner list of the primitive (indexed or not), before strip/fan conversion.
+  std::vector<uint32_t> corners;
+  if (prim.indices >= 0) {
+    // glTF 2.0: indices are scalar unsigned bytes, shorts or ints, not normalised; so every
+    // value read below is a whole number ≥ 0 (a float accessor could hold NaN).
+    if (prim.indices < int(model.accessors.size())) {
+      const auto& acc = model.accessors[size_t(prim.indices)];
+      if ((acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+           acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+           acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) ||
+          acc.type != TINYGLTF_TYPE_SCALAR || acc.normalized)
+        throw InputError(path, what + " indices: accessor " + std::to_string(prim.indices) +
+                                   " must hold unnormalised scalar unsigned integers (glTF 2.0)");
+    }
+    const std::vector<double> idx = detail::readAccessor(model, prim.indices, 1, path, what + " indices");
+    corners.reserve(idx.size());
+    for (double v : idx) {
+      if (v >= double(nv))
+        throw InputError(path, what + ": index " + std::to_string(uint64_t(v)) + " is out of range (" +
+                                   std::to_string(nv) + " vertices)");
+      corners.push_back(uint32_t(v));
+    }
+  } else {
+    for (size_t i = 0; i < nv; ++i) corners.push_back(uint32_t(i));
+  }
+  std::vector<uint32_t> tris;
+  if (mode == TINYGLTF_MODE_TRIANGLES) {
+    for (size_t i = 0; i + 2 < corners.size(); i += 3) tris.insert(tris.end(), {corners[i], corners[i + 1], corners[i + 2]});
+  } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+    // glTF: triangle i = (i, i+1, i+2) for even i, (i+1, i, i+2) for odd i.
+    for (size_t i = 0; i + 2 < corners.size(); ++i) {
+      if (i % 2 == 0)
+        tris.insert(tris.end(), {corners[i], corners[i + 1], corners[i + 2]});
+      else
+        tris.insert(tris.end(), {corners[i + 1], corners[i], corners[i + 2]});
+    }
+  } else {
+    // glTF: triangle i = (i+1, i+2, 0).
+    for (size_t i = 0; i + 2 < corners.size(); ++i) tris.insert(tris.end(), {corners[i + 1], corners[i + 2], corners[0]});
+  }
+  // World transform; normals by the inverse transpose of the upper 3×3; a mirroring
+  // transform (negative determinant) flips the winding.
+  const double* m = world.data();
+  const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], k = m[10];
+  const double det = a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g);
+  // Cofactor matrix = det × inverse transpose (the scale of det does not matter: renormalised).
+  const double cof[9] = {e * k - f * h, -(d * k - f * g), d * h - e * g,
+                         -(b * k - c * h), a * k - c * g, -(a * h - b * g),
+                         b * f - c * e, -(a * f - c * d), a * e - b * d};
+  const double sgn = det < 0 ? -1.0 : 1.0;
+  const uint32_t first = uint32_t(mesh.vertexCount());
+  for (size_t i = 0; i < nv; ++i) {
+    const double x = p[3 * i], y = p[3 * i + 1], z = p[3 * i + 2];
+    mesh.positions.push_back(float(m[0] * x + m[4] * y + m[8] * z + m[12]));
+    mesh.positions.push_back(float(m[1] * x + m[5] * y + m[9] * z + m[13]));
+    mesh.positions.push_back(float(m[2] * x + m[6] * y + m[10] * z + m[14]));
+    double w[3] = {0, 0, 0};
+    if (!n.empty()) {
+      const double nx = n[3 * i], ny = n[3 * i + 1], nz = n[3 * i + 2];
+      // row r of cofactor · n
+      w[0] = sgn * (cof[0] * nx + cof[1] * ny + cof[2] * nz);
+      w[1] = sgn * (cof[3] * nx + cof[4] * ny + cof[5] * nz);
+      w[2] = sgn * (cof[6] * nx + cof[7] * ny + cof[8] * nz);
+      const double len = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+      if (len > 1e-12 && std::isfinite(len))
+        for (double& q : w) q /= len;
+      else
+        w[0] = w[1] = w[2] = 0;  // zero-length or non-finite: recomputed by fillMissingNormals
+    }
+    for (double q : w) mesh.normals.push_back(float(q));
+    for (int ch = 0; ch < 3; ++ch) mesh.albedo.push_back(float(base[ch] * (col.empty() ? 1.0 : col[3 * i + ch])));
+  }
+  for (size_t t = 0; t + 2 < tris.size(); t += 3) {
+    if (det < 0)
+      mesh.indices.insert(mesh.indices.end(), {first + tris[t], first + tris[t + 2], first + tris[t + 1]});
+    else
+      mesh.indices.insert(mesh.indices.end(), {first + tris[t], first + tris[t + 1], first + tris[t + 2]});
+  }
+  mesh.gltfPrimitives.push_back({nodeIndex, meshIndex, primIndex, first, uint32_t(nv)});
+}
+
+}  // namespace
+
+Mesh loadGltf(const std::string& path) {
+  tinygltf::Model model;
+  detail::loadGltfModel(path, model);
+  Mesh mesh;
+  mesh.sourcePath = path;
+  mesh.inputFiles = {path};
+  {
+    const auto slash = path.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? std::string(".") : path.substr(0, slash);
+    auto external = [&](const std::string& uri) {
+      if (!uri.empty() && uri.rfind("data:", 0) != 0) mesh.inputFiles.push_back(dir + "/" + uri);
+    };
+    for (const auto& b : model.buffers) external(b.uri);
+    for (const auto& im : model.images) external(im.uri);
+  }
+  mesh.format = Mesh::Format::Gltf;
+  std::vector<char> onPath(model.nodes.size(), 0);
+  std::function<void(int, const Mat4&)> walk = [&](int ni, const Mat4& parent) {
+    if (ni < 0 || ni >= int(model.nodes.size())) throw InputError(path, "node " + std::to_string(ni) + " does not exist");
+    if (onPath[ni]) throw InputError(path, "the node hierarchy has a cycle at node " + std::to_string(ni));
+    onPath[ni] = 1;
+    const auto& node = model.nodes[ni];
+    const Mat4 world = mul(parent, nodeMatrix(node));
+    if (node.mesh >= 0) {
+      if (node.mesh >= int(model.meshes.size())) throw InputError(path, "mesh " + std::to_string(node.mesh) + " does not exist");
+      for (size_t pi = 0; pi < model.meshes[node.mesh].primitives.size(); ++pi)
+        addPrimitive(model, ni, node.mesh, int(pi), world, path, mesh);
+    }
+    for (int c : node.children) walk(c, world);
+    onPath[ni] = 0;
+  };
+  for (int r : detail::gltfRootNodes(model)) walk(r, identity());
+  return mesh;
+}
+
+}  // namespace prtbake

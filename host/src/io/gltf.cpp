@@ -1,0 +1,157 @@
+// glTF 2.0 reading shared by the mesh loader and the transport glTF copy's reader (io/gltf.h).
+#include <cstdint>
+#include <cstring>
+#include <nlohmann/json.hpp>
+#include <sys/stat.h>
+
+#include "io/gltf.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/limits.h"
+
+namespace prtbake {
+namespace detail {
+namespace {
+bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
+               void*) {
+  return true;  // images are not needed for transport and are passed through untouched
+}
+}  // namespace
+
+void loadGltfModel(const std::string& path, tinygltf::Model& model) {
+  const std::string bytes = readFile(path);
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(skipImage, nullptr);
+  std::string err, warn;
+  const size_t slash = path.find_last_of('/');
+  const std::string baseDir = slash == std::string::npos ? "." : path.substr(0, slash);
+  // tinygltf lets some malformed files end in a standard exception (vector::at on an empty
+  // list of a GLB: found by fuzzing); those are bad input like the errors it reports.
+  auto guarded = [&](const std::function<bool()>& load) {
+    try {
+      return load();
+    } catch (const Error&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw InputError(path, std::string("not a valid glTF 2.0 file: ") + e.what());
+    }
+  };
+  bool ok;
+  if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
+    // The GLB header's version field (bytes 4..7, little-endian) is 2 for glTF 2.0;
+    // glTF 1.0 binaries (version 1) have another layout that this loader does not read.
+    if (bytes.size() < 12) throw InputError(path, "truncated GLB header (" + std::to_string(bytes.size()) + " bytes)");
+    const uint32_t glbVersion = uint32_t(uint8_t(bytes[4])) | uint32_t(uint8_t(bytes[5])) << 8 |
+                                uint32_t(uint8_t(bytes[6])) << 16 | uint32_t(uint8_t(bytes[7])) << 24;
+    if (glbVersion != 2)
+      throw InputError(path, "GLB container version " + std::to_string(glbVersion) + " (glTF 2.0 needs version 2)");
+    ok = guarded([&] {
+      return loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                         unsigned(bytes.size()), baseDir);
+    });
+  } else {
+    // External buffer and image files must be regular files: tinygltf would try to
+    // read a directory as a file of size 2^63.
+    try {
+      const auto doc = nlohmann::json::parse(bytes);
+      for (const char* key : {"buffers", "images"})
+        if (doc.contains(key) && doc[key].is_array())
+          for (const auto& item : doc[key])
+            if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
+              const std::string uri = item["uri"].get<std::string>();
+              if (uri.rfind("data:", 0) == 0) continue;
+              struct stat st {};
+              const std::string file = baseDir + "/" + uri;
+              if (::stat(file.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+                throw InputError(path, std::string(key) + " uri '" + uri + "' is not a regular file");
+            }
+    } catch (const nlohmann::json::exception&) {
+      // not JSON: tinygltf reports the syntax error below
+    }
+    ok = guarded([&] { return loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir); });
+  }
+  if (!ok) {
+    while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
+    throw InputError(path, "not a valid glTF 2.0 file: " + (err.empty() ? std::string("parse error") : err));
+  }
+}
+
+std::vector<int> gltfRootNodes(const tinygltf::Model& model) {
+  if (!model.scenes.empty()) {
+    const int s = model.defaultScene >= 0 && model.defaultScene < int(model.scenes.size()) ? model.defaultScene : 0;
+    return model.scenes[s].nodes;
+  }
+  std::vector<char> isChild(model.nodes.size(), 0);
+  for (const auto& n : model.nodes)
+    for (int c : n.children)
+      if (c >= 0 && c < int(isChild.size())) isChild[c] = 1;
+  std::vector<int> roots;
+  for (size_t i = 0; i < model.nodes.size(); ++i)
+    if (!isChild[i]) roots.push_back(int(i));
+  return roots;
+}
+
+// See gltf_common.h: every number the file gives is checked before it is used.
+std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
+                                 const std::string& what, size_t expectedCount) {
+  const std::string name = what + ": accessor " + std::to_string(index);
+  if (index < 0 || index >= int(model.accessors.size())) throw InputError(path, name + " does not exist");
+  const auto& acc = model.accessors[size_t(index)];
+  if (expectedCount != SIZE_MAX && acc.count != expectedCount)
+    throw InputError(path, name + " has " + std::to_string(acc.count) + " elements, but the primitive has " +
+                               std::to_string(expectedCount) + " vertices (POSITION)");
+  const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+  if (ncomp < comps) throw InputError(path, name + " has too few components");
+  const int csize = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+  if (csize <= 0) throw InputError(path, name + " has an unsupported component type");
+  const size_t elementBytes = size_t(ncomp) * size_t(csize);
+  checkInputMemory(path, name + " (" + std::to_string(acc.count) + " elements)", 8.0 * double(acc.count) * comps);
+  if (acc.bufferView < 0)  // all zeros (sparse accessors are not read)
+    return std::vector<double>(acc.count * size_t(comps), 0.0);
+  if (acc.bufferView >= int(model.bufferViews.size()))
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " does not exist");
+  const auto& view = model.bufferViews[size_t(acc.bufferView)];
+  if (view.buffer < 0 || view.buffer >= int(model.buffers.size()))
+    throw InputError(path, what + ": buffer " + std::to_string(view.buffer) + " does not exist");
+  const auto& buf = model.buffers[size_t(view.buffer)].data;
+  const std::string past = name + " runs past the end of its buffer (truncated file?)";
+  // Each comparison keeps the next subtraction or product from wrapping around.
+  if (view.byteOffset > buf.size() || view.byteLength > buf.size() - view.byteOffset)
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) +
+                               " runs past the end of its buffer (truncated file?)");
+  if (view.byteStride != 0 && (view.byteStride < elementBytes || view.byteStride > 252))
+    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " has byte stride " +
+                               std::to_string(view.byteStride) + " (an element of accessor " + std::to_string(index) +
+                               " takes " + std::to_string(elementBytes) + " bytes; the most is 252)");
+  const size_t stride = view.byteStride ? view.byteStride : elementBytes;
+  if (acc.byteOffset > view.byteLength || acc.count > view.byteLength) throw InputError(path, past);
+  if (acc.count > 0 && (acc.count - 1) * stride + elementBytes > view.byteLength - acc.byteOffset)
+    throw InputError(path, past);
+  const size_t start = view.byteOffset + acc.byteOffset;
+  // Allocated only once the count is known to fit the buffer.
+  std::vector<double> out(acc.count * size_t(comps), 0.0);
+  for (size_t i = 0; i < acc.count; ++i) {
+    const unsigned char* e = buf.data() + start + i * stride;
+    for (int c = 0; c < comps; ++c) {
+      const unsigned char* p = e + size_t(c) * csize;
+      double v = 0;
+      switch (acc.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
+        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); v = d; break; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = *p; if (acc.normalized) v /= 255.0; break;
+        case TINYGLTF_COMPONENT_TYPE_BYTE: v = *reinterpret_cast<const signed char*>(p); if (acc.normalized) v = std::max(v / 127.0, -1.0); break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t u; std::memcpy(&u, p, 2); v = u; if (acc.normalized) v /= 65535.0; break; }
+        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t s; std::memcpy(&s, p, 2); v = s; if (acc.normalized) v = std::max(v / 32767.0, -1.0); break; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t u; std::memcpy(&u, p, 4); v = u; break; }
+        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t s; std::memcpy(&s, p, 4); v = s; break; }
+        default: throw InputError(path, name + " has an unsupported component type");
+      }
+      out[i * comps + c] = v;
+    }
+  }
+  return out;
+}
+
+}  // namespace detail
+
+}  // namespace prtbake

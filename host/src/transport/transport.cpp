@@ -1,0 +1,503 @@
+// Transport on the OpenCL device: BVH upload, direct term, bounces, and "--tolerance"
+// (see transport.h and prtbake/tolerance.h).
+#include "prtbake/transport.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <future>
+
+#include "core/constants.h"
+#include "core/kernel_options.h"
+#include "prtbake/bvh.h"
+#include "prtbake/error.h"
+#include "prtbake/sh.h"
+#include "core/tolerance_pilot.h"
+#include "transport/transport_setup.h"
+
+namespace prtbake {
+namespace {
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
+// scalar; 16 keeps the groups numerous enough to balance over the cores.
+constexpr size_t kLocalSize = 16;
+
+// The most device memory the direct term's blocked-ray masks may take (a bit per ray:
+// 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
+constexpr double kMaskBytes = 256.0 * 1024 * 1024;
+
+size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
+
+// The scene on the device and the kernels over lists of vertices. Each call takes
+// `samples` directions per vertex (the samples-point set of the seed and sampler) in
+// launches of at most detail::kTransportSampleChunk directions and returns means in double.
+class Tracer {
+ public:
+  Tracer(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup, bool visibility,
+         TransportResult& r)
+      : rt_(rt), mesh_(mesh), o_(o), setup_(setup), visibility_(visibility), nc_(o.order * o.order) {
+    // Without --tolerance the bounces trace the direct term's rays again (same count, seed,
+    // origins and frames): a ray that nothing blocked there hits nothing in a bounce.
+    const double packets = std::ceil(o.samples / double(std::max(o.packetWidth, 1)));
+    keepBlocked_ = visibility && o.mode == TransportMode::Interreflected && o.tolerance <= 0 && o.packetWidth > 0 &&
+                   double(mesh.vertexCount()) * packets * 2 <= kMaskBytes;
+    noMask_ = rt.upload(std::vector<float>(1, 0.0f));
+    if (visibility) {
+      const auto t0 = Clock::now();
+      const Bvh bvh = buildBvh(mesh);
+      r.bvhSeconds = since(t0);
+      r.bvhNodes = bvh.nodes.size();
+      r.degenerateTriangles = bvh.degenerateTriangles;
+      unoccludable_ = detail::unoccludableFromBvh(mesh, bvh, setup);
+      nodes_ = detail::uploadBvhNodes(rt, bvh, o.packetWidth > 0);
+      tris_ = detail::uploadBvhTriangles(rt, bvh, o.packetWidth > 0);
+    } else {
+      unoccludable_.assign(mesh.vertexCount(), 0);
+      nodes_ = rt.upload(std::vector<float>(8, 0.0f));
+      tris_ = rt.upload(std::vector<float>(12, 0.0f));
+    }
+  }
+
+  const std::vector<uint8_t>& unoccludable() const { return unoccludable_; }
+
+  // T^(0) of `vertices` (order² each) and their unoccluded fractions. Unoccludable
+  // vertices are marked in their origin's w: the kernel traces no rays for them.
+  // With keepBlocked_, the whole mesh at o.samples keeps its blocked-ray masks for bounce().
+  std::vector<double> direct(const std::vector<uint32_t>& vertices, int samples, std::vector<double>* visible,
+                             TransportResult& r) {
+    const int nv = int(vertices.size());
+    std::vector<double> sums(size_t(nv) * nc_, 0.0), seen(size_t(nv), 0.0);
+    blocked_.clear();
+    if (nv > 0) {
+      uploadVertices(vertices);
+      cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4), vis(rt_.context(), CL_MEM_WRITE_ONLY, seen.size() * 4);
+      cl::Kernel k = kernel("transport_direct", "transport_direct_packet", 1);
+      k.setArg(8, out);
+      k.setArg(9, vis);
+      const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
+      std::vector<float> part(sums.size()), partSeen(seen.size());
+      // With the masks: the blocked rays of each vertex in each launch (chunk-major), counted
+      // from the masks themselves, which the first bounce traces (so the two agree).
+      std::vector<uint32_t> chunkBlocked;
+      std::vector<uint16_t> words;
+      forEachChunk(k, samples, nv, 10, keep ? MaskUse::Write : MaskUse::None, [](int) {}, [&](int chunk, int) {
+        // One wait for all reads (the queue runs in order).
+        rt_.queue().enqueueReadBuffer(out, CL_FALSE, 0, part.size() * 4, part.data());
+        if (keep) {
+          words.resize(blocked_[size_t(chunk)].getInfo<CL_MEM_SIZE>() / 2);
+          rt_.queue().enqueueReadBuffer(blocked_[size_t(chunk)], CL_FALSE, 0, words.size() * 2, words.data());
+        }
+        rt_.queue().enqueueReadBuffer(vis, CL_TRUE, 0, partSeen.size() * 4, partSeen.data());
+        for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
+        for (size_t i = 0; i < seen.size(); ++i) seen[i] += partSeen[i];
+        const size_t perVertex = words.size() / size_t(nv);
+        for (size_t i = 0; keep && i < size_t(nv); ++i) {
+          uint32_t count = 0;
+          for (size_t w = 0; w < perVertex; ++w) count += uint32_t(__builtin_popcount(words[i * perVertex + w]));
+          chunkBlocked.push_back(count);
+        }
+      });
+      size_t traced = 0;
+      for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
+      if (visibility_) r.rays += uint64_t(traced) * uint64_t(samples);
+      blockedRays_ = 0;
+      for (uint32_t b : chunkBlocked) blockedRays_ += b;
+      hitsWritten_ = false;
+      if (keep && double(blockedRays_) * 12 <= detail::kKeptHitBytes) {
+        // Where each vertex's hits of each launch go: vertex-major, so that a vertex's hits
+        // lie together.
+        const size_t chunks = chunkBlocked.size() / size_t(nv);
+        std::vector<int32_t> start(size_t(nv) * chunks + 1, 0);
+        for (size_t i = 0; i < size_t(nv); ++i)
+          for (size_t c = 0; c < chunks; ++c)
+            start[i * chunks + c + 1] = start[i * chunks + c] + int32_t(chunkBlocked[c * size_t(nv) + i]);
+        hitStart_ = rt_.upload(start);
+        hitChunks_ = int(chunks);
+      } else {
+        hitChunks_ = 0;
+      }
+      r.totalSamples += uint64_t(nv) * uint64_t(samples);
+    }
+    for (double& x : sums) x /= samples;
+    if (visible) {
+      for (double& x : seen) x /= samples;
+      *visible = std::move(seen);
+    }
+    return sums;
+  }
+
+  // T^(k+1) of `vertices` (channels × order² each) from T^(k) of every vertex in `prev`.
+  // more: another bounce may follow (worth keeping the hits for).
+  std::vector<double> bounce(const std::vector<uint32_t>& vertices, int samples, int channels,
+                             const cl::Buffer& prev, bool more, TransportResult& r) {
+    const int nv = int(vertices.size()), stride = channels * nc_;
+    std::vector<double> sums(size_t(nv) * stride, 0.0);
+    if (nv > 0) {
+      if (!indices_()) {
+        std::vector<int32_t> idx(mesh_.triangleCount() * 4, 0);
+        for (size_t t = 0; t < mesh_.triangleCount(); ++t)
+          for (int c = 0; c < 3; ++c) idx[4 * t + c] = int32_t(mesh_.indices[3 * t + c]);
+        indices_ = rt_.upload(idx);
+        albedo_ = rt_.upload(detail::vertexAlbedo(mesh_, o_));
+      }
+      uploadVertices(vertices);
+      cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4);
+      cl::Kernel k = kernel("transport_bounce", "transport_bounce_packet", channels);
+      k.setArg(8, indices_);
+      k.setArg(9, albedo_);
+      k.setArg(10, prev);
+      k.setArg(11, out);
+      const bool reuse = !blocked_.empty() && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
+      const bool record = reuse && more && hitChunks_ > 0 && !hitsWritten_;
+      const bool replay = reuse && hitChunks_ > 0 && hitsWritten_;
+      if (record) hits_ = cl::Buffer(rt_.context(), CL_MEM_READ_WRITE, std::max<size_t>(12, size_t(blockedRays_) * 12));
+      std::vector<float> part(sums.size());
+      auto collect = [&](int, int) {
+        rt_.queue().enqueueReadBuffer(out, CL_TRUE, 0, part.size() * 4, part.data());
+        for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
+      };
+      if (replay) {  // the hits of the first bounce, gathered again
+        cl::Kernel g = rt_.kernel("transport.cl", "transport_gather",
+                                  detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
+        g.setArg(0, nv);
+        g.setArg(1, hits_);
+        g.setArg(2, hitStart_);
+        g.setArg(3, hitChunks_);
+        g.setArg(5, indices_);
+        g.setArg(6, albedo_);
+        g.setArg(7, prev);
+        g.setArg(8, out);
+        for (int c = 0; c < hitChunks_; ++c) {
+          g.setArg(4, c);
+          rt_.queue().enqueueNDRangeKernel(g, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
+                                           cl::NDRange(kLocalSize));
+          collect(c, 0);
+        }
+      } else {
+        forEachChunk(k, samples, nv, 12, reuse ? MaskUse::Read : MaskUse::None, [&](int chunk) {
+          if (o_.packetWidth <= 0) return;
+          k.setArg(15, record ? hits_ : noMask_);
+          k.setArg(16, record ? hitStart_ : noMask_);
+          k.setArg(17, record ? hitChunks_ : 0);
+          k.setArg(18, chunk);
+        }, collect);
+        hitsWritten_ = record;
+      }
+      size_t traced = 0;  // the kernel skips vertices that nothing can reach
+      for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
+      r.rays += replay ? 0 : reuse ? blockedRays_ : uint64_t(traced) * uint64_t(samples);
+      r.totalSamples += uint64_t(nv) * uint64_t(samples);
+    }
+    for (double& x : sums) x /= samples;
+    return sums;
+  }
+
+ private:
+  cl::Kernel kernel(const char* scalarName, const char* packetName, int channels) {
+    const bool packet = o_.packetWidth > 0;
+    cl::Kernel k = rt_.kernel("transport.cl", packet ? packetName : scalarName,
+                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
+    k.setArg(2, origins_);
+    k.setArg(3, frames_);
+    k.setArg(5, nodes_);
+    k.setArg(6, tris_);
+    k.setArg(7, setup_.tMax);
+    return k;
+  }
+
+  // Origins (w = 1: unoccludable) and frames of the listed vertices.
+  void uploadVertices(const std::vector<uint32_t>& vertices) {
+    std::vector<float> origins(vertices.size() * 4), frames(vertices.size() * 12);
+    for (size_t i = 0; i < vertices.size(); ++i) {
+      std::copy_n(&setup_.origins[4 * size_t(vertices[i])], 4, &origins[4 * i]);
+      std::copy_n(&setup_.frames[12 * size_t(vertices[i])], 12, &frames[12 * i]);
+      origins[4 * i + 3] = unoccludable_[vertices[i]] ? 1.0f : 0.0f;
+    }
+    origins_ = rt_.upload(origins);
+    frames_ = rt_.upload(frames);
+  }
+
+  // Launches `k` over nv vertices for each chunk of the direction set, then `collect`.
+  // paddedArg: the packet kernels' argument index of the padded direction count, followed
+  // by the blocked-ray mask and its words per vertex (written, read, or none: 0 words).
+  // before(chunk) sets what else a launch needs; collect(chunk, directions) reads it back.
+  enum class MaskUse { None, Write, Read };
+  template <class Before, class Collect>
+  void forEachChunk(cl::Kernel& k, int samples, int nv, int paddedArg, MaskUse mask, Before&& before,
+                    Collect&& collect) {
+    const bool packet = o_.packetWidth > 0;
+    k.setArg(0, nv);
+    for (int first = 0, chunk = 0; first < samples; first += detail::kTransportSampleChunk, ++chunk) {
+      const int n = std::min(detail::kTransportSampleChunk, samples - first);
+      std::vector<float> dirs = detail::directionChunk(samples, first, n, o_.seed, o_.sampler);
+      int padded = 0;
+      if (packet) dirs = detail::packetDirections(dirs, padded);
+      const cl::Buffer d = rt_.upload(dirs);
+      k.setArg(1, n);
+      k.setArg(4, d);
+      if (packet) {
+        const int words = padded / o_.packetWidth;
+        k.setArg(paddedArg, padded);
+        if (mask == MaskUse::Write)
+          blocked_.emplace_back(rt_.context(), CL_MEM_READ_WRITE, size_t(nv) * size_t(words) * 2);
+        k.setArg(paddedArg + 1, mask == MaskUse::None ? noMask_ : blocked_[size_t(chunk)]);
+        k.setArg(paddedArg + 2, mask == MaskUse::None ? 0 : words);
+      }
+      before(chunk);
+      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
+                                       cl::NDRange(kLocalSize));
+      collect(chunk, n);
+    }
+  }
+
+  Runtime& rt_;
+  const Mesh& mesh_;
+  const TransportOptions& o_;
+  const detail::RaySetup& setup_;
+  bool visibility_;
+  int nc_;
+  std::vector<uint8_t> unoccludable_;
+  cl::Buffer nodes_, tris_, origins_, frames_, indices_, albedo_, noMask_;
+  bool keepBlocked_ = false;
+  std::vector<cl::Buffer> blocked_;  // per chunk of directions: V × words ushort
+  uint64_t blockedRays_ = 0;         // the rays the last direct() found blocked
+  // The first bounce's hits of those rays (3 floats each) and where each vertex's start,
+  // per launch (hitChunks_ launches; 0: not kept).
+  cl::Buffer hits_, hitStart_;
+  int hitChunks_ = 0;
+  bool hitsWritten_ = false;
+};
+
+// The size of the requested vertex range; throws UsageError when it leaves the mesh
+// or splits an interreflected job.
+size_t rangeSize(const Mesh& mesh, const TransportOptions& o) {
+  const size_t nv = mesh.vertexCount();
+  if (o.firstVertex > nv)
+    throw UsageError("vertex range", "first vertex " + std::to_string(o.firstVertex) + " is beyond the mesh's " +
+                                         std::to_string(nv) + " vertices");
+  const size_t count = o.vertexCount ? *o.vertexCount : nv - o.firstVertex;
+  if (count > nv - o.firstVertex)
+    throw UsageError("vertex range", std::to_string(count) + " vertices from " + std::to_string(o.firstVertex) +
+                                         " run past the mesh's " + std::to_string(nv) + " vertices");
+  if (o.mode == TransportMode::Interreflected && count != nv)
+    throw UsageError("vertex range", "interreflected transport needs every vertex (each bounce reads the "
+                                     "previous bounce of the whole mesh); compute the whole mesh");
+  return count;
+}
+
+bool hasNormal(const detail::RaySetup& s, size_t v) {
+  return s.frames[12 * v + 8] != 0 || s.frames[12 * v + 9] != 0 || s.frames[12 * v + 10] != 0;
+}
+
+// The count for one term under --tolerance: the pilot over every k-th sampled vertex of the
+// whole mesh (prtbake/tolerance.h: at most 128, one in up to 8 of a small mesh's, at least
+// 64), `evaluate` giving their values at N samples.
+int toleranceCount(const std::vector<uint32_t>& sampled, size_t stride, double tolerance, const TransportOptions& o,
+                   const std::function<std::vector<double>(const std::vector<uint32_t>&, int)>& evaluate,
+                   TransportResult& r) {
+  std::vector<uint32_t> pilot;
+  const size_t v = sampled.size();
+  const size_t step = std::max((v + kTolerancePilotVertices - 1) / kTolerancePilotVertices,
+                               std::min(kTolerancePilotShare, v / kTolerancePilotMinVertices));
+  for (size_t i : detail::pilotSubset(v, step)) pilot.push_back(sampled[i]);
+  auto each = [&](const std::vector<int>& counts) {
+    std::vector<std::vector<double>> out;
+    for (int n : counts) out.push_back(evaluate(pilot, n));
+    return out;
+  };
+  ToleranceReport rep =
+      detail::runTolerancePilot(each, stride, tolerance, o.toleranceMaxSamples, int(std::max(o.packetWidth, 1)));
+  rep.items = sampled.size();
+  r.tolerance.push_back(rep);
+  return rep.samples;
+}
+
+}  // namespace
+
+std::string detail::transportOptions(int order, bool visibility, int channels, int packetWidth) {
+  return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
+         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packetWidth);
+}
+
+TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
+  const auto tStart = Clock::now();
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  TransportResult r;
+  r.order = o.order;
+  r.samples = o.samples;
+  r.device = rt.deviceLabel();
+  const int nc = o.order * o.order;
+  const size_t first = o.firstVertex, count = rangeSize(mesh, o), nvAll = mesh.vertexCount();
+  r.vertexCount = count;
+  r.firstVertex = first;
+  r.channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
+  if (count == 0) {
+    r.totalSeconds = since(tStart);
+    return r;
+  }
+  const bool visibility = o.mode != TransportMode::Unshadowed;
+  // The direct term's program is built (or read from the caches) while the rays and the
+  // BVH are set up.
+  auto program = std::async(std::launch::async, [&rt, &o, visibility] {
+    rt.program("transport.cl", detail::transportOptions(o.order, visibility, 1, o.packetWidth));
+  });
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
+  for (size_t v = first; v < first + count; ++v) r.verticesWithoutNormal += hasNormal(setup, v) ? 0 : 1;
+  Tracer tracer(rt, mesh, o, setup, visibility, r);
+  program.get();
+  const auto tKernel = Clock::now();
+  std::vector<uint32_t> range(count);
+  for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);
+  for (uint32_t v : range) r.verticesUnoccludable += tracer.unoccludable()[v];
+
+  // The direct term T^(0) of the range, and the vertices that are sampled.
+  std::vector<double> t0, vis;
+  std::vector<uint32_t> sampled = range;  // every vertex, or those that need samples
+  const bool tolerance = o.tolerance > 0;
+  if (!tolerance) {
+    t0 = tracer.direct(range, o.samples, &vis, r);
+  } else {
+    // Closed form where nothing can be in the way (zero for a vertex without a normal);
+    // the others from the predicted count.
+    auto needsSamples = [&](uint32_t v) { return visibility && hasNormal(setup, v) && !tracer.unoccludable()[v]; };
+    std::vector<uint32_t> sampledAll;
+    for (uint32_t v = 0; v < nvAll; ++v)
+      if (needsSamples(v)) sampledAll.push_back(v);
+    sampled.clear();
+    for (uint32_t v : range)
+      if (needsSamples(v)) sampled.push_back(v);
+    t0.assign(count * nc, 0.0);
+    vis.assign(count, 1.0);
+    for (size_t i = 0; i < count; ++i)
+      if (hasNormal(setup, range[i]) && !needsSamples(range[i])) {
+        const float* n = &setup.frames[12 * size_t(range[i]) + 8];
+        const std::vector<double> c = clampedCosineProjected(o.order, n[0], n[1], n[2]);
+        std::copy(c.begin(), c.end(), t0.begin() + std::ptrdiff_t(i * nc));
+      }
+    const double share = o.mode == TransportMode::Interreflected ? o.tolerance / 2 : o.tolerance;
+    r.samples = 0;
+    if (!sampledAll.empty()) {
+      r.samples = toleranceCount(sampledAll, nc, share, o,
+                                 [&](const std::vector<uint32_t>& vs, int n) { return tracer.direct(vs, n, nullptr, r); }, r);
+      std::vector<double> sVis;
+      const std::vector<double> s = tracer.direct(sampled, r.samples, &sVis, r);
+      for (size_t j = 0, i = 0; i < count; ++i)
+        if (j < sampled.size() && sampled[j] == range[i]) {
+          std::copy_n(s.begin() + std::ptrdiff_t(j * nc), nc, t0.begin() + std::ptrdiff_t(i * nc));
+          vis[i] = sVis[j++];
+        }
+    } else {
+      ToleranceReport rep;
+      rep.tolerance = share;
+      rep.strategy = "closed form";
+      rep.why = visibility ? "no vertex can be occluded: each takes the Funk-Hecke projection of its clamped cosine"
+                           : "unshadowed transport is the Funk-Hecke projection of the clamped cosine";
+      rep.items = nvAll;
+      r.tolerance.push_back(rep);
+    }
+  }
+
+  // Standard error of the direct term (see transport.h), over the sampled vertices.
+  r.stdError.assign(count, 0.0f);
+  double sumErr = 0;
+  const int nSamples = std::max(r.samples, 1);
+  std::vector<char> isSampled(nvAll, tolerance ? 0 : 1);
+  for (uint32_t v : sampled) isSampled[v] = 1;
+  for (size_t i = 0; i < count; ++i) {
+    if (!isSampled[range[i]]) continue;
+    double norm2 = 0;
+    for (int k = 0; k < nc; ++k) norm2 += t0[i * nc + k] * t0[i * nc + k];
+    const double se = std::sqrt(std::max(0.0, nc / (4 * kPi) * vis[i] - norm2) / nSamples);
+    r.stdError[i] = float(se);
+    r.maxStdError = std::max(r.maxStdError, se);
+    sumErr += se;
+  }
+  r.meanStdError = sumErr / double(count);
+
+  if (o.mode != TransportMode::Interreflected) {
+    r.coeffs.assign(t0.begin(), t0.end());
+  } else {
+    // Bounces over the whole mesh (count == nvAll): T^(k+1) from T^(k), until one adds
+    // less than bounceTolerance.
+    const int ch = r.channels, stride = ch * nc;
+    std::vector<float> prev(nvAll * stride);
+    for (size_t v = 0; v < nvAll; ++v)
+      for (int c = 0; c < ch; ++c)
+        for (int k = 0; k < nc; ++k) prev[v * stride + c * nc + k] = float(t0[v * nc + k]);
+    std::vector<double> total(prev.begin(), prev.end());
+    if (o.keepBounces) r.bounceCoeffs.push_back(prev);
+    cl::Buffer prevBuf(rt.context(), CL_MEM_READ_ONLY, prev.size() * 4);
+    for (int b = 1; b <= o.bounces; ++b) {
+      rt.queue().enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
+      auto evaluate = [&](const std::vector<uint32_t>& vs, int n) {
+        return tracer.bounce(vs, n, ch, prevBuf, b < o.bounces, r);
+      };
+      std::vector<double> next(prev.size(), 0.0);
+      if (!tolerance) {
+        next = evaluate(range, o.samples);
+      } else if (!sampled.empty()) {
+        // Vertices nothing can occlude see no other surface: their bounces are zero.
+        const int n = toleranceCount(sampled, size_t(stride), o.tolerance / std::pow(2.0, b + 1), o, evaluate, r);
+        const std::vector<double> s = evaluate(sampled, n);
+        for (size_t j = 0; j < sampled.size(); ++j)
+          std::copy_n(s.begin() + std::ptrdiff_t(j * stride), stride, next.begin() + std::ptrdiff_t(sampled[j] * size_t(stride)));
+      }
+      double maxNorm = 0;
+      for (size_t v = 0; v < nvAll; ++v) {
+        double n2 = 0;
+        for (int k = 0; k < stride; ++k) {
+          const double x = next[v * stride + k];
+          n2 += x * x;
+          total[v * stride + k] += x;
+        }
+        maxNorm = std::max(maxNorm, std::sqrt(n2));
+      }
+      prev.assign(next.begin(), next.end());
+      r.bounceMaxNorm.push_back(maxNorm);
+      r.bouncesUsed = b;
+      if (o.keepBounces) r.bounceCoeffs.push_back(prev);
+      if (maxNorm < o.bounceTolerance) break;
+    }
+    r.coeffs.assign(total.begin(), total.end());
+  }
+  r.kernelSeconds = since(tKernel);
+  r.totalSeconds = since(tStart);
+  return r;
+}
+
+std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  const Bvh bvh = buildBvh(mesh);
+  const bool packet = o.packetWidth > 0;
+  cl::Buffer nodes = detail::uploadBvhNodes(rt, bvh, packet), tris = detail::uploadBvhTriangles(rt, bvh, packet);
+  const int nv = int(mesh.vertexCount());
+  int padded = 0;
+  const std::vector<float> dirs = packet ? detail::packetDirections(setup.dirs, padded) : setup.dirs;
+  cl::Kernel k = rt.kernel("transport.cl", packet ? "transport_visibility_packet" : "transport_visibility",
+                           detail::transportOptions(o.order, true, 1, o.packetWidth));
+  cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, std::max<size_t>(size_t(nv) * o.samples, 16));
+  // Held until the kernel has run: a kernel argument does not keep its buffer alive.
+  const cl::Buffer origins = rt.upload(setup.origins), frames = rt.upload(setup.frames), dirsBuf = rt.upload(dirs);
+  k.setArg(0, nv);
+  k.setArg(1, o.samples);
+  k.setArg(2, origins);
+  k.setArg(3, frames);
+  k.setArg(4, dirsBuf);
+  k.setArg(5, nodes);
+  k.setArg(6, tris);
+  k.setArg(7, setup.tMax);
+  k.setArg(8, out);
+  if (packet) k.setArg(9, padded);
+  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)), cl::NDRange(kLocalSize));
+  std::vector<uint8_t> vis(size_t(nv) * o.samples);
+  rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, vis.size(), vis.data());
+  return vis;
+}
+
+}  // namespace prtbake

@@ -1,0 +1,149 @@
+// Double-precision CPU reference of the transport kernels: the same rays (origins,
+// frames, directions), brute force over every triangle, exact inclusive edges.
+#include <cmath>
+
+#include "prtbake/error.h"
+#include "prtbake/sh.h"
+#include "prtbake/transport.h"
+#include "transport/transport_setup.h"
+
+namespace prtbake {
+namespace {
+
+struct Hit {
+  double t, u, v;
+  bool ok;
+};
+
+// Möller–Trumbore in double, barycentrics accepted on the closed triangle.
+Hit intersect(const double* o, const double* d, const double* v0, const double* v1, const double* v2, double tMax) {
+  double e1[3], e2[3], s[3];
+  for (int c = 0; c < 3; ++c) e1[c] = v1[c] - v0[c], e2[c] = v2[c] - v0[c], s[c] = o[c] - v0[c];
+  const double p[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+  const double det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
+  if (det == 0) return {0, 0, 0, false};
+  const double inv = 1 / det;
+  const double u = (s[0] * p[0] + s[1] * p[1] + s[2] * p[2]) * inv;
+  const double q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
+  const double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv;
+  const double t = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
+  return {t, u, v, t > 0 && t < tMax && u >= 0 && v >= 0 && u + v <= 1};
+}
+
+}  // namespace
+
+TransportResult computeTransportReference(const Mesh& mesh, const TransportOptions& o, ReferenceRays* rays) {
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
+  TransportResult r;
+  r.order = o.order;
+  r.samples = o.samples;
+  r.vertexCount = mesh.vertexCount();
+  r.device = "CPU reference (double)";
+  const bool rgb = detail::transportIsRgb(mesh, o);
+  r.channels = rgb ? 3 : 1;
+  const int nc = o.order * o.order, ns = o.samples;
+  const size_t nv = mesh.vertexCount(), nt = mesh.triangleCount();
+  const bool visibility = o.mode != TransportMode::Unshadowed;
+  std::vector<double> tri(nt * 9);
+  for (size_t t = 0; t < nt; ++t)
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c) tri[9 * t + 3 * k + c] = mesh.positions[3 * size_t(mesh.indices[3 * t + k]) + c];
+  if (rays) {
+    rays->visible.assign(nv * ns, 1);
+    rays->edgeDistance.assign(nv * ns, 1.0);
+  }
+  // Ray p, sample s in double from the float set-up the kernel reads.
+  auto ray = [&](size_t v, int s, double* org, double* dir) {
+    for (int c = 0; c < 3; ++c) {
+      org[c] = setup.origins[4 * v + c];
+      dir[c] = double(setup.frames[12 * v + c]) * setup.dirs[4 * s] +
+               double(setup.frames[12 * v + 4 + c]) * setup.dirs[4 * s + 1] +
+               double(setup.frames[12 * v + 8 + c]) * setup.dirs[4 * s + 2];
+    }
+  };
+  auto hasNormal = [&](size_t v) {
+    const float* n = &setup.frames[12 * v + 8];
+    return n[0] != 0 || n[1] != 0 || n[2] != 0;
+  };
+  std::vector<double> t0(nv * nc, 0.0), y(nc);
+  for (size_t v = 0; v < nv; ++v) {
+    if (!hasNormal(v)) continue;
+    for (int s = 0; s < ns; ++s) {
+      double org[3], dir[3];
+      ray(v, s, org, dir);
+      bool blocked = false;
+      double nearEdge = 1.0;
+      if (visibility)
+        for (size_t t = 0; t < nt; ++t) {
+          const Hit h = intersect(org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], setup.tMax);
+          if (h.t > 0 && h.t < setup.tMax && std::isfinite(h.u))
+            nearEdge = std::min(nearEdge, std::abs(std::min({h.u, h.v, 1 - h.u - h.v})));
+          if (h.ok) {
+            blocked = true;
+            if (!rays) break;
+          }
+        }
+      if (rays) {
+        rays->visible[v * ns + s] = blocked ? 0 : 1;
+        rays->edgeDistance[v * ns + s] = nearEdge;
+      }
+      if (blocked) continue;
+      shEval(o.order, dir[0], dir[1], dir[2], y.data());
+      for (int k = 0; k < nc; ++k) t0[v * nc + k] += y[k];
+    }
+    for (int k = 0; k < nc; ++k) t0[v * nc + k] /= ns;
+  }
+  const int ch = r.channels, stride = ch * nc;
+  std::vector<double> total(nv * stride), prev(nv * stride);
+  for (size_t v = 0; v < nv; ++v)
+    for (int c = 0; c < ch; ++c)
+      for (int k = 0; k < nc; ++k) prev[v * stride + c * nc + k] = t0[v * nc + k];
+  total = prev;
+  if (o.mode == TransportMode::Interreflected) {
+    const std::vector<float> albedo = detail::vertexAlbedo(mesh, o);
+    std::vector<double> next(nv * stride);
+    for (int b = 1; b <= o.bounces; ++b) {
+      std::fill(next.begin(), next.end(), 0.0);
+      double maxNorm = 0;
+      for (size_t v = 0; v < nv; ++v) {
+        if (!hasNormal(v)) continue;
+        for (int s = 0; s < ns; ++s) {
+          double org[3], dir[3];
+          ray(v, s, org, dir);
+          Hit best{setup.tMax, 0, 0, false};
+          size_t bestTri = 0;
+          for (size_t t = 0; t < nt; ++t) {
+            const Hit h = intersect(org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], best.t);
+            if (h.ok) best = h, bestTri = t;
+          }
+          if (!best.ok) continue;
+          const uint32_t* id = &mesh.indices[3 * bestTri];
+          const double w[3] = {1 - best.u - best.v, best.u, best.v};
+          for (int c = 0; c < ch; ++c) {
+            double rho = 0;
+            for (int k = 0; k < 3; ++k) rho += w[k] * albedo[4 * size_t(id[k]) + c];
+            for (int k = 0; k < nc; ++k) {
+              double tq = 0;
+              for (int j = 0; j < 3; ++j) tq += w[j] * prev[size_t(id[j]) * stride + c * nc + k];
+              next[v * stride + c * nc + k] += rho * tq / ns;
+            }
+          }
+        }
+        double n2 = 0;
+        for (int k = 0; k < stride; ++k) n2 += next[v * stride + k] * next[v * stride + k];
+        maxNorm = std::max(maxNorm, std::sqrt(n2));
+      }
+      for (size_t i = 0; i < total.size(); ++i) total[i] += next[i];
+      r.bounceMaxNorm.push_back(maxNorm);
+      r.bouncesUsed = b;
+      if (maxNorm < o.bounceTolerance) break;
+      prev.swap(next);
+    }
+  }
+  r.coeffs.assign(total.begin(), total.end());
+  return r;
+}
+
+}  // namespace prtbake
