@@ -479,7 +479,7 @@ for dn in gpu cpu; do
   fi
 done
 mkdir -p "$work/lut_gpu" "$work/lut_cpu"
-bench b_lut_gpu bench_lut gpu 120 env PRTBAKE_DEVICE="$GPU" "$BIN/bench_lut" "$work/lut_gpu"
+bench b_lut_gpu bench_lut gpu 120 env PRTBAKE_DEVICE=gpu "$BIN/bench_lut" "$work/lut_gpu"
 [ -f "$work/lut_gpu/lut.json" ] && cp "$work/lut_gpu/lut.json" "$RES/lut_gpu.json"
 bench b_lut_cpu bench_lut cpu 120 env PRTBAKE_DEVICE="$CPU" "$BIN/bench_lut" "$work/lut_cpu"
 render
