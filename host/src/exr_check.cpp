@@ -72,6 +72,13 @@ double maxExpansion(int compression) {
   }
 }
 
+// A count held in a double (it may exceed every integer type) as digits.
+std::string wholeNumber(double v) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.0f", v);
+  return text;
+}
+
 // The header, attributes and offset table are at the start of the file: only this much of
 // it is read for the walk (a file's pixels may be gigabytes).
 constexpr size_t kHeaderBytes = size_t(64) << 20;
@@ -192,8 +199,8 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
   const double pixelDataBytes = double(std::max(facts.width, 0LL)) * double(std::max(facts.height, 0LL)) * pixelBytes;
   if (ratio > 0 && pixelDataBytes > ratio * dataBytes + 65536.0)
     throw InputError(path, "truncated OpenEXR file: its " + std::to_string(facts.width) + "x" + std::to_string(facts.height) +
-                               " data window holds " + std::to_string((long long)pixelDataBytes) + " bytes of pixels, " +
-                               "more than the " + std::to_string((long long)dataBytes) + " bytes after its header can decode to");
+                               " data window holds " + wholeNumber(pixelDataBytes) + " bytes of pixels, more than the " +
+                               wholeNumber(dataBytes) + " bytes after its header can decode to");
   // A single-part scanline file's offset table follows the header: one 8-byte offset
   // per chunk of lines.
   if (!multipart && !(flags & kTiledFlag) && facts.height > 0) {
