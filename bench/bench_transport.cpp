@@ -1,7 +1,9 @@
 // bench_transport: rays/s of shadowed per-vertex transport on mary.obj (GAMES202's
 // scene, 1024 samples) and on a procedural ~200k-triangle bumpy sphere, SH orders 3 and 5.
 //
-// usage: bench_transport [--repeats N] [--samples-large N] [--device SPEC]
+// usage: bench_transport [--repeats N] [--samples-large N] [--device SPEC] [--packet-width W] [--knot]
+// --packet-width: TransportOptions::packetWidth (16, 8, or 0 for one ray per work-item);
+// --knot: the large mesh is the torus knot of bench_embree.sh (204,800 triangles).
 // Prints one line per case: wall seconds of computeTransport (median of N runs; the
 // programs are built beforehand on a tiny mesh), kernel seconds, rays, rays/s, and rays
 // per CPU-second of this process (PoCL's threads included): on a shared machine the
@@ -33,8 +35,11 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+int packetWidth = TransportOptions{}.packetWidth;
+
 void run(Runtime& rt, const std::string& name, const Mesh& mesh, int order, int samples, int repeats) {
   TransportOptions o;
+  o.packetWidth = packetWidth;
   o.mode = TransportMode::Shadowed;
   o.order = order;
   o.samples = samples;
@@ -62,15 +67,20 @@ void run(Runtime& rt, const std::string& name, const Mesh& mesh, int order, int 
 int main(int argc, char** argv) {
   int repeats = 3, samplesLarge = 1024;
   std::string device;
+  bool knot = false;
+  for (int i = 1; i < argc; ++i) knot = knot || std::string(argv[i]) == "--knot";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--repeats") repeats = std::atoi(argv[i + 1]);
     else if (a == "--samples-large") samplesLarge = std::atoi(argv[i + 1]);
     else if (a == "--device") device = argv[i + 1];
+    else if (a == "--packet-width") packetWidth = std::atoi(argv[i + 1]);
+    else if (a == "--knot") --i;
   }
   Runtime rt(device);
   std::printf("device: %s\n", rt.deviceLabel().c_str());
-  std::printf("shadowed transport; median of %d runs (mary.obj), %d (large mesh)\n", repeats, std::max(1, repeats / 3));
+  std::printf("shadowed transport, packet width %d; median of %d runs (mary.obj), %d (large mesh)\n", packetWidth, repeats,
+              std::max(1, repeats / 3));
   const std::string maryPath = std::string(PRTBAKE_BENCH_DATA_DIR) + "/meshes/obj/mary.obj";
   try {
     const Mesh mary = loadMesh(maryPath);
@@ -78,7 +88,7 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::printf("mary.obj skipped: %s\n", e.what());
   }
-  const Mesh large = makeBumpySphere(204000);
-  for (int order : {3, 5}) run(rt, "bumpy sphere", large, order, samplesLarge, std::max(1, repeats / 3));
+  const Mesh large = knot ? makeTorusKnot(800, 128) : makeBumpySphere(204000);
+  for (int order : {3, 5}) run(rt, knot ? "knot" : "bumpy sphere", large, order, samplesLarge, std::max(1, repeats / 3));
   return 0;
 }

@@ -20,6 +20,13 @@ cat "$@" | sort -u | while IFS=$'\t' read -r file options; do
   [ -f "kernels/$file" ] && printf '%s\t%s\n' "$file" "$options"
 done >"$work/variants" || true
 status=0
+# What NVIDIA's own compiler refuses and clang's nvptx target takes: __builtin_prefetch on a
+# __global pointer (driver 580, bench/results/gpu.md). Only bvh_packet.clh's CPU-only
+# BVH_PREFETCH may use it.
+if grep -n '__builtin_prefetch' kernels/*.cl kernels/*.clh kernels/*.h | grep -v '#define BVH_PREFETCH(p) __builtin_prefetch(p)'; then
+  echo "nvptx check: __builtin_prefetch outside BVH_PREFETCH (NVIDIA's compiler refuses it on __global pointers)" >&2
+  status=1
+fi
 for f in kernels/*.cl; do
   if ! cut -f1 "$work/variants" | grep -qx "$(basename "$f")"; then
     echo "nvptx check: no variant of $(basename "$f") is listed, so it is not checked" >&2

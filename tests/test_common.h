@@ -93,10 +93,11 @@ struct MeasuredRun {
   std::string output;  // stdout and stderr together
 };
 // Runs the built prtbake executable with `args` (one argument each, no shell), with its
-// output in `outputFile`. posix_spawn, not fork: the child's peak resident size is then its
-// own, without a copy of this process's pages.
+// output in `outputFile`, through prtbake_peak_rss (tests/peak_rss.cpp): a child's peak
+// resident size would otherwise count this process's memory up to its exec.
 inline MeasuredRun runCliMeasured(std::vector<std::string> args, const std::string& outputFile) {
-  args.insert(args.begin(), PRTBAKE_CLI_PATH);
+  const std::string result = outputFile + ".peak";
+  args.insert(args.begin(), {PRTBAKE_PEAK_RSS_PATH, result, PRTBAKE_CLI_PATH});
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -111,11 +112,14 @@ inline MeasuredRun runCliMeasured(std::vector<std::string> args, const std::stri
   ::posix_spawn_file_actions_destroy(&actions);
   if (spawned != 0) return r;
   int status = 0;
-  rusage ru{};
-  if (::wait4(pid, &status, 0, &ru) != pid) return r;
+  if (::waitpid(pid, &status, 0) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) return r;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.peakMiB = double(ru.ru_maxrss) / 1024.0;
+  long peakKiB = 0;
+  if (FILE* f = std::fopen(result.c_str(), "r")) {
+    if (std::fscanf(f, "%d %ld", &r.exitCode, &peakKiB) != 2) r.exitCode = -1;
+    std::fclose(f);
+  }
+  r.peakMiB = double(peakKiB) / 1024.0;
   if (FILE* f = std::fopen(outputFile.c_str(), "rb")) {
     char buf[4096];
     size_t n;

@@ -72,6 +72,13 @@ double maxExpansion(int compression) {
   }
 }
 
+// A count held in a double (it may exceed every integer type) as digits.
+std::string wholeNumber(double v) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.0f", v);
+  return text;
+}
+
 // The header, attributes and offset table are at the start of the file: only this much of
 // it is read for the walk (a file's pixels may be gigabytes).
 constexpr size_t kHeaderBytes = size_t(64) << 20;
@@ -107,7 +114,8 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
   const size_t maxName = (flags & kLongNamesFlag) ? 255 : 31;
   const bool multipart = (flags & kMultipartFlag) != 0;
   ExrHeaderFacts facts;
-  int compression = -1;
+  int compression = 3;  // a header without the attribute keeps the library's default, ZIP
+  long long tileWidth = 0, tileHeight = 0;
   double pixelBytes = 0;  // of the first part's channels, per pixel of its data window
   size_t pos = 8;
   // A null-terminated string of at most maxName characters at pos.
@@ -181,6 +189,8 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
         facts.height = (long long)le32(b, pos + 12) - le32(b, pos + 4) + 1;
       } else if (part == 0 && name == "compression" && type == "compression") {
         compression = uint8_t(b[pos]);
+      } else if (part == 0 && name == "tiles" && type == "tiledesc") {
+        tileWidth = (long long)uint32_t(le32(b, pos)), tileHeight = (long long)uint32_t(le32(b, pos + 4));
       }
       pos = end;
     }
@@ -188,12 +198,20 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
   }
   // The chunks after the headers hold the first part's pixels at most maxExpansion times
   // their size (a tiled file's other levels and other parts only add to what they need).
+  // The library's decompressor holds a whole chunk, whatever the data window: a scanline
+  // chunk's lines (16 for ZIP: a 14-million-pixel row of a 177-byte file had it allocate
+  // 914 MB) or a tile, so the data window counts as at least one chunk.
   const double ratio = maxExpansion(compression), dataBytes = double(fileSize - pos);
-  const double pixelDataBytes = double(std::max(facts.width, 0LL)) * double(std::max(facts.height, 0LL)) * pixelBytes;
+  const bool tiled = (flags & kTiledFlag) != 0;
+  const double width = double(std::max(facts.width, 0LL)), height = double(std::max(facts.height, 0LL));
+  const double chunkWidth = tiled ? double(tileWidth) : width, chunkLines = tiled ? double(tileHeight) : linesPerChunk(compression);
+  const double pixelDataBytes = std::max(width * height, chunkWidth * chunkLines) * pixelBytes;
   if (ratio > 0 && pixelDataBytes > ratio * dataBytes + 65536.0)
     throw InputError(path, "truncated OpenEXR file: its " + std::to_string(facts.width) + "x" + std::to_string(facts.height) +
-                               " data window holds " + std::to_string((long long)pixelDataBytes) + " bytes of pixels, " +
-                               "more than the " + std::to_string((long long)dataBytes) + " bytes after its header can decode to");
+                               " data window" + (width * height >= chunkWidth * chunkLines ? "" : " (in chunks of " +
+                               wholeNumber(chunkWidth) + "x" + wholeNumber(chunkLines) + ")") + " holds " +
+                               wholeNumber(pixelDataBytes) + " bytes of pixels, more than the " + wholeNumber(dataBytes) +
+                               " bytes after its header can decode to");
   // A single-part scanline file's offset table follows the header: one 8-byte offset
   // per chunk of lines.
   if (!multipart && !(flags & kTiledFlag) && facts.height > 0) {

@@ -5,15 +5,20 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 
 namespace prtbake::detail {
 namespace {
 
-std::string sizeText(double width, double height) {
-  return std::to_string((long long)width) + "x" + std::to_string((long long)height);
+// Counts held in doubles (a header's product may exceed every integer type) as digits.
+std::string wholeNumber(double v) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.0f", v);
+  return text;
 }
-std::string bytesText(double bytes) { return std::to_string((long long)bytes) + " bytes"; }
+std::string sizeText(double width, double height) { return wholeNumber(width) + "x" + wholeNumber(height); }
+std::string bytesText(double bytes) { return wholeNumber(bytes) + " bytes"; }
 
 // The resolution line of a Radiance file, "-Y H +X W" (the only orientation stb_image
 // reads); false when `line` is not one.
@@ -182,7 +187,7 @@ std::string jpegProblem(const std::vector<unsigned char>& b) {
   const double blocks = std::ceil(width / 8) * std::ceil(height / 8);
   if (blocks > 0 && 8 * entropyBytes < blocks)
     return "truncated: its " + bytesText(entropyBytes) + " of entropy-coded data cannot hold a " + sizeText(width, height) +
-           " image (at least 1 bit for each of its " + std::to_string((long long)blocks) + " 8x8 blocks)";
+           " image (at least 1 bit for each of its " + wholeNumber(blocks) + " 8x8 blocks)";
   return "";
 }
 
