@@ -58,7 +58,7 @@ cp "$DATA/envmaps/hdr/venice_sunset_1k.hdr" "$DEST/data/envmaps/hdr/"
 cp -r "$DATA/envmaps/games202/Skybox2048" "$DEST/data/envmaps/games202/"
 chmod -R u+w "$DEST/data"
 
-# The torus knot of bench_embree --write-knot (makeTorusKnot(800, 128), host/src/mesh.cpp):
+# The torus knot of bench_embree --write-knot (makeTorusKnot(800, 128), host/src/geometry/mesh.cpp):
 # from bench_embree when it is built, else the same construction in Python (double
 # arithmetic, float32 vertices, printed with %.9g as bench_embree writes them).
 if [ -x "$BUILD/bench/bench_embree" ]; then

@@ -2,7 +2,7 @@
 //
 // No float3 (16 bytes on the device, 12 on the host): every vector is spelled out
 // as scalars or packed into float4 by the code that uploads it. The host checks the
-// sizes with static_assert (host/src/bvh.cpp).
+// sizes with static_assert (host/src/geometry/bvh.cpp).
 #ifndef PRTBAKE_BVH_TYPES_H
 #define PRTBAKE_BVH_TYPES_H
 
@@ -20,7 +20,7 @@ typedef struct {
 } BvhNode;
 
 // One node of the 4-wide BVH the packet kernels traverse (128 bytes), collapsed from
-// the binary one (host/src/bvh.cpp): child slot i holds its box in lane i of the six
+// the binary one (host/src/geometry/bvh.cpp): child slot i holds its box in lane i of the six
 // float4 (min x, min y, min z, max x, max y, max z) and
 //   count[i] > 0:  a leaf of count[i] triangles in blocks from block child[i] (below);
 //   count[i] = −1: an empty slot, whose box (min = +1e30, max = −1e30) no ray enters;
