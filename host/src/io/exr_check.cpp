@@ -1,5 +1,6 @@
 // The OpenEXR header walk (exr_check.h).
 #include "io/exr_check.h"
+#include "io/image_check.h"
 
 #include <sys/stat.h>
 
@@ -70,13 +71,6 @@ double maxExpansion(int compression) {
     case 8: case 9: return 131072;
     default: return 0;
   }
-}
-
-// A count held in a double (it may exceed every integer type) as digits.
-std::string wholeNumber(double v) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.0f", v);
-  return text;
 }
 
 // The header, attributes and offset table are at the start of the file: only this much of

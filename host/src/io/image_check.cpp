@@ -11,12 +11,6 @@
 namespace prtbake::detail {
 namespace {
 
-// Counts held in doubles (a header's product may exceed every integer type) as digits.
-std::string wholeNumber(double v) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.0f", v);
-  return text;
-}
 std::string sizeText(double width, double height) { return wholeNumber(width) + "x" + wholeNumber(height); }
 std::string bytesText(double bytes) { return wholeNumber(bytes) + " bytes"; }
 
@@ -45,6 +39,12 @@ bool parseResolution(const std::string& line, long long& height, long long& widt
 }
 
 }  // namespace
+
+std::string wholeNumber(double v) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.0f", v);
+  return text;
+}
 
 // stb_image's stbi__hdr_load: the identifier line, header lines up to an empty one (or one
 // that starts with a NUL), the resolution line, then the pixels: flat RGBE when the width

@@ -24,4 +24,8 @@ std::string radianceProblem(const std::vector<unsigned char>& bytes);
 std::string pngProblem(const std::vector<unsigned char>& bytes);
 std::string jpegProblem(const std::vector<unsigned char>& bytes);
 
+// A count held in a double (a header's product may exceed every integer type) as digits,
+// for the checks' messages.
+std::string wholeNumber(double v);
+
 }  // namespace prtbake::detail
