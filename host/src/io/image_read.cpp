@@ -91,17 +91,23 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
   if (bytes.empty()) throw InputError(path, "cannot decode image: the file is empty");
   if (bytes.size() > size_t(std::numeric_limits<int>::max())) throw InputError(path, "file too large");
   // What the file can hold, before stb allocates the image its header claims.
+  const auto* buf = bytes.data();
+  const int len = int(bytes.size());
+  const bool hdr = stb::isHdr(buf, len), sixteen = !hdr && stb::is16Bit(buf, len);
+  // What the file can hold, before the input memory limit and before stb allocates the
+  // image its header claims: a small file's claim is refused for what it is.
+  if (hdr) {
+    const std::string problem = radianceProblem(bytes);
+    if (!problem.empty()) throw InputError(path, "cannot decode Radiance HDR image: " + problem);
+  }
   for (std::string (*check)(const std::vector<unsigned char>&) : {&pngProblem, &jpegProblem}) {
     const std::string problem = check(bytes);
     if (!problem.empty()) throw InputError(path, "cannot decode image: " + problem);
   }
-  const auto* buf = bytes.data();
-  const int len = int(bytes.size());
   Image img;
   int w = 0, h = 0;
   // Peak bytes per pixel: the float RGB result (12), stb's decoded copy (3 samples of
   // 4, 2 or 1 bytes) and, for integer images, the 16-bit code copy (6).
-  const bool hdr = stb::isHdr(buf, len), sixteen = !hdr && stb::is16Bit(buf, len);
   const double peakBytesPerPixel = hdr ? 24 : sixteen ? 24 : 21;
   // The header's size, checked before stb allocates its own buffer of that size. Any one
   // block stb asks for is then bounded: 16 bytes a pixel, padded to JPEG's largest MCU
@@ -114,8 +120,6 @@ Image readWithStb(const std::string& path, const std::vector<unsigned char>& byt
   }
   if (hdr) {
     img.format = "Radiance HDR";
-    const std::string problem = radianceProblem(bytes);
-    if (!problem.empty()) throw InputError(path, "cannot decode Radiance HDR image: " + problem);
     std::unique_ptr<float, decltype(&std::free)> px(stb::loadHdr(buf, len, blockLimit, &w, &h), &std::free);
     if (!px) throw InputError(path, "cannot decode Radiance HDR image: " + stb::reason());
     checkSize(path, w, h, peakBytesPerPixel);
