@@ -6,7 +6,10 @@
 #include <string>
 
 #include "core/kernel_options.h"
+#include "prtbake/envmap.h"
 #include "prtbake/glossy.h"
+#include "prtbake/lut.h"
+#include "prtbake/prefilter.h"
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"
 
