@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "prtbake/prefilter.h"
+#include <nlohmann/json.hpp>
 
 namespace prtbake::cli {
 
@@ -56,10 +56,22 @@ struct Registrar {
 // Prints "prtbake: <text>" to stderr unless quiet (status lines, not errors).
 void status(const CommandLine& cl, const std::string& text);
 
-// The prefilter options of a command line (--lobe, --schedule, --roughness, --levels,
-// --tolerance, --method, --samples, --no-estimate, and the base size from `sizeOption`),
-// validated (cmd_prefilter.cpp).
-PrefilterOptions prefilterOptionsFromCli(const CommandLine& cl, const std::string& sizeOption, int defaultSize);
+// The options of product `type`: the keys of its job type (jobs.h, declared once there) as
+// --name with their help, range and default; then `extra`, the command's own (its outputs).
+std::vector<OptionSpec> productOptions(const std::string& type, std::vector<OptionSpec> extra);
+
+// The command-line names (without "--") of product `a`'s options that `b` does not have.
+std::vector<std::string> optionsOnlyOf(const std::string& a, const std::string& b);
+
+// The command line's texts of keys: every option, named as a key ("bounce_tolerance").
+std::map<std::string, std::string> keyTexts(const CommandLine& cl);
+
+// The normalised parameters of product `type` from `texts` (default: keyTexts(cl)), checked as
+// a job's are and with the type's rules run on `outputs`, the output kinds this command writes
+// (jobs::paramsFromText); the first problem is a UsageError naming the option.
+nlohmann::json productParams(const std::string& type, const std::map<std::string, std::string>& texts,
+                             const nlohmann::json& outputs);
+nlohmann::json productParams(const CommandLine& cl, const std::string& type, const nlohmann::json& outputs);
 
 }  // namespace prtbake::cli
 

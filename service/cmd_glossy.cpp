@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <memory>
 
 #include <nlohmann/json.hpp>
@@ -37,25 +38,38 @@ int cpcaWeightBits(const CommandLine& cl, const std::string& name) {
   return cl.getChoice(name, "float32", {"float32", "int8"}) == "int8" ? 8 : 32;
 }
 
-// --cpca K,P | --cpca-error E [--cpca-weights W] (nullopt-like: clusters = 0 and targetError = 0 when absent).
-bool cpcaOptions(const CommandLine& cl, CpcaOptions& co) {
-  if (cl.has("cpca") && cl.has("cpca-error")) throw UsageError("--cpca-error", "give --cpca K,P or --cpca-error E, not both");
-  co.weightBits = cpcaWeightBits(cl, "cpca-weights");
+// The glossy keys of the command line, with its two shorthands written out:
+// --brdf ggx:R[:F0] | lambertian[:A] (brdf, roughness, f0, brdf_albedo) and
+// --cpca K,P (cpca_clusters, cpca_vectors).
+std::map<std::string, std::string> glossyTexts(const CommandLine& cl) {
+  std::map<std::string, std::string> texts = keyTexts(cl);
+  const std::string brdf = cl.get("brdf");
+  if (const size_t colon = brdf.find(':'); colon != std::string::npos) {
+    for (const char* key : {"roughness", "f0", "brdf-albedo"})
+      if (cl.has(key)) throw UsageError("--" + std::string(key), "give it or --brdf " + brdf + ", not both");
+    const std::string name = brdf.substr(0, colon), rest = brdf.substr(colon + 1);
+    const size_t second = rest.find(':');
+    texts["brdf"] = name;
+    if (name == "ggx") {
+      texts["roughness"] = rest.substr(0, second);
+      if (second != std::string::npos) texts["f0"] = rest.substr(second + 1);
+    } else if (name == "lambertian" && second == std::string::npos) {
+      texts["brdf_albedo"] = rest;
+    } else {
+      throw UsageError("--brdf", "expected ggx:R[:F0] or lambertian[:A], got '" + brdf + "'");
+    }
+  }
   if (cl.has("cpca")) {
-    const std::vector<double> v = cl.getDoubles("cpca", 2);
-    if (!(v[0] >= 1 && v[0] <= 65536 && v[0] == std::floor(v[0])) ||
-        !(v[1] >= 0 && v[1] <= kMaxCpcaVectors && v[1] == std::floor(v[1])))
-      throw UsageError("--cpca", "expected K,P with K in [1, 65536] clusters and P in [0, " +
-                                     std::to_string(kMaxCpcaVectors) + "] vectors");
-    co.clusters = int(v[0]), co.vectors = int(v[1]);
-    return true;
+    if (cl.has("cpca-clusters") || cl.has("cpca-vectors"))
+      throw UsageError("--cpca", "give --cpca K,P or --cpca-clusters K --cpca-vectors P, not both");
+    const std::string kp = cl.get("cpca");
+    const size_t comma = kp.find(',');
+    if (comma == std::string::npos) throw UsageError("--cpca", "expected K,P (clusters, vectors), got '" + kp + "'");
+    texts["cpca_clusters"] = kp.substr(0, comma);
+    texts["cpca_vectors"] = kp.substr(comma + 1);
+    texts.erase("cpca");
   }
-  if (cl.has("cpca-error")) {
-    co.targetError = cl.getDouble("cpca-error", 0.02, 1e-6, 0.999);
-    return true;
-  }
-  if (cl.has("cpca-weights")) throw UsageError("--cpca-weights", "goes with --cpca K,P or --cpca-error E");
-  return false;
+  return texts;
 }
 
 std::string cpcaLine(const CpcaResult& c) {
@@ -73,28 +87,19 @@ std::string cpcaLine(const CpcaResult& c) {
 int runGlossyTransport(const CommandLine& cl) {
   const std::string input = cl.positional.at(0), out = cl.get("output");
   if (out.empty()) throw UsageError("transport", "missing -o OUT.npy");
-  for (const char* name : {"tolerance", "max-samples", "sampler", "gltf", "games202"})
-    if (cl.has(name)) throw UsageError(std::string("--") + name, "only applies to --transfer vector");
-  GlossyOptions o;
-  o.mode = parseTransportMode(cl.get("mode", "shadowed"));
-  const int order = int(cl.getInt("order", 3, 1, 1000));
-  o.orderOut = int(cl.getInt("order-out", order, 1, 1000));
-  o.orderIn = int(cl.getInt("order-in", order, 1, 1000));
-  o.samples = int(cl.getInt("samples", 1024, 1, 1 << 24));
-  o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
-  o.bounces = int(cl.getInt("bounces", 3, 1, 64));
-  o.bounceTolerance = cl.getDouble("bounce-tolerance", 1e-4, 0, 1e30);
-  if (cl.has("bounces") && o.mode != TransportMode::Interreflected)
-    throw UsageError("--bounces", "only applies to --mode interreflected");
-  if (cl.has("albedo")) {
-    const double a = cl.getDouble("albedo", 1, 0, 1);
-    o.albedoOverride = std::array<float, 3>{float(a), float(a), float(a)};
-  }
-  const MatrixDtype dtype = parseMatrixDtype(cl.get("dtype", "float32"));
-  const bool brdf = cl.has("brdf");
-  const BrdfSpec brdfSpec = brdf ? parseBrdfSpec(cl.get("brdf")) : BrdfSpec{};
-  CpcaOptions co;
-  const bool cpca = cpcaOptions(cl, co);
+  std::vector<std::string> vectorOnly = optionsOnlyOf("transport", "glossy");
+  vectorOnly.insert(vectorOnly.end(), {"gltf", "games202"});
+  for (const std::string& name : vectorOnly)
+    if (cl.has(name)) throw UsageError("--" + name, "only applies to --transfer vector");
+  const std::map<std::string, std::string> texts = glossyTexts(cl);
+  const bool cpca = texts.count("cpca_clusters") || texts.count("cpca_error");
+  nlohmann::json outputs = {{"npy", out}, {"json", stem(out) + ".json"}};
+  if (cpca) outputs["cpca"] = stem(out) + ".cpca.npz";
+  const nlohmann::json p = productParams("glossy", texts, outputs);
+  GlossyOptions o = jobs::glossyOptionsFrom(p);
+  const MatrixDtype dtype = parseMatrixDtype(p["dtype"].get<std::string>());
+  const bool brdf = p["brdf"] != "none";
+  const CpcaOptions co = jobs::cpcaOptionsFrom(p);
   checkGlossyOptions(o);  // orders and counts before anything is read
 
   const Mesh mesh = loadMesh(input);
@@ -115,7 +120,7 @@ int runGlossyTransport(const CommandLine& cl) {
                  std::to_string(o.orderIn * o.orderIn) + ", " + transportModeName(o.mode) + ", " +
                  std::to_string(o.samples) + " samples, " + mib(bytes) + " of float32 streamed to " + out);
   Runtime& rt = jobs::processRuntime(cl.device());
-  const std::vector<double> b = brdf ? brdfMatrixLocal(brdfSpec, o.orderOut) : std::vector<double>{};
+  const std::vector<double> b = jobs::brdfFrom(p, o.orderOut);
   NpyStreamWriter writer(out, glossyNpyShape(nv, channels, o.orderOut, o.orderIn), dtype);
   std::vector<float> kept, block;
   if (cpca) kept.reserve(size_t(bytes / 4));
@@ -166,35 +171,7 @@ int previewGlossyMesh(const CommandLine& cl, const std::string& input, const std
   if (cl.has("matrices") && cl.has("cpca")) throw UsageError("--cpca", "give --matrices M.npy or --cpca C.npz, not both");
   GlossyPreviewOptions go;
   MeshPreviewOptions& o = go.view;
-  // Size, view and light rotation as the diffuse preview parses them.
-  if (cl.has("size")) {
-    const std::string s = cl.get("size");
-    char* end = nullptr;
-    const long w = std::strtol(s.c_str(), &end, 10);
-    long h = w * 3 / 4;
-    if (end != s.c_str() && *end == 'x') {
-      const char* p = end + 1;
-      h = std::strtol(p, &end, 10);
-      if (end == p) h = -1;
-    }
-    if (end == s.c_str() || *end != '\0' || w < 8 || w > 16384 || h < 8 || h > 16384)
-      throw UsageError("--size", "expected WxH with W and H in [8, 16384], got '" + s + "'");
-    o.width = int(w), o.height = int(h);
-  }
-  const std::string view = cl.get("view", "front");
-  if (view == "front") o.yawDeg = 0, o.pitchDeg = 0;
-  else if (view == "side") o.yawDeg = 90, o.pitchDeg = 0;
-  else if (view == "top") o.yawDeg = 0, o.pitchDeg = 90;
-  else {
-    char* end = nullptr;
-    o.yawDeg = std::strtod(view.c_str(), &end);
-    if (end == view.c_str() || *end != ',') throw UsageError("--view", "expected front, side, top or YAW,PITCH, got '" + view + "'");
-    const char* p = end + 1;
-    o.pitchDeg = std::strtod(p, &end);
-    if (end == p || *end != '\0' || !std::isfinite(o.yawDeg) || !(o.pitchDeg >= -90 && o.pitchDeg <= 90))
-      throw UsageError("--view", "expected YAW,PITCH in degrees with PITCH in [-90, 90], got '" + view + "'");
-  }
-  o.lightRotationDeg = cl.getDouble("rotate-light", 0.0, -36000.0, 36000.0);
+  meshViewFromCli(cl, o);  // size, view and light rotation as the diffuse preview reads them
   go.normalised = !cl.has("unnormalised");
   ToneMap tm;
   tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);

@@ -5,8 +5,9 @@
 
 #include "cli.h"
 #include "jobs.h"
-#include "prtbake/ibl.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
+#include "prtbake/ibl.h"
 #include "prtbake/runtime.h"
 
 namespace prtbake::cli {
@@ -16,17 +17,10 @@ int runIbl(const CommandLine& cl) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string input = cl.positional.at(0), output = cl.get("output");
   if (output.empty()) throw UsageError("ibl", "missing -o DIR");
-  IblPackageOptions o;
-  o.targets = parseEngineTargets(cl.get("target", "all"));
-  o.size = int(cl.getInt("size", o.size, -(1L << 30), 1L << 30));
-  o.skyboxSize = int(cl.getInt("skybox-size", 0, 1, 1L << 30));
-  o.lutSize = int(cl.getInt("lut-size", o.lutSize, -(1L << 30), 1L << 30));
-  o.tolerance = cl.getDouble("tolerance", o.tolerance, -1e300, 1e300);
-  validateIblPackageOptions(o);
-  EnvLoadOptions lo;
-  lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
-  lo.clampInvalid = cl.has("clamp-invalid");
-  const double yaw = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
+  const nlohmann::json p = productParams(cl, "ibl", {{"dir", output}});
+  const IblPackageOptions o = jobs::iblOptionsFrom(p);
+  const EnvLoadOptions lo = jobs::envLoadOptionsFrom(p, false);
+  const double yaw = p["yaw"].get<double>();
   EnvMap env = loadEnvironment(input, lo);
   env.yawDegrees = yaw;
   Runtime& rt = jobs::processRuntime(cl.device());
@@ -41,7 +35,7 @@ int runIbl(const CommandLine& cl) {
   for (const auto& f : r.files) bytes += f.bytes;
   char line[256];
   std::snprintf(line, sizeof line, "ibl %s: %zu files, %.1f MB; %.2f s -> %s", targets.c_str(), r.files.size(),
-                double(bytes) / 1e6, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                double(bytes) / 1e6, secondsSince(t0),
                 output.c_str());
   status(cl, line);
   return 0;
@@ -61,15 +55,7 @@ PRTBAKE_COMMAND(Command{
     "  babylon   babylon/environment.env, environment.glb (EXT_lights_image_based)\n"
     "  gltf      gltf/lambertian/diffuse.ktx2, ggx/specular.ktx2, charlie/sheen.ktx2, lut_ggx.png, lut_charlie.png\n"
     "INPUT: anything prtbake env reads. See docs/engines.md.",
-    {{"output", true, "package directory (also -o)"},
-     {"target", true, "threejs, filament, babylon, gltf, all (default) or a comma-separated list"},
-     {"size", true, "base face size of the prefiltered cubes (power of two, 16..4096, default 256)"},
-     {"skybox-size", true, "Filament skybox face size (default: --size)"},
-     {"lut-size", true, "glTF LUT size (16..1024, default 128)"},
-     {"tolerance", true, "prefilter tolerance (1e-4..0.1, default 0.01; see prtbake prefilter)"},
-     {"layout", true, "environment layout, as for prtbake env (default auto)"},
-     {"yaw", true, "rotate the environment about +Y by DEG degrees"},
-     {"clamp-invalid", false, "replace NaN/Inf/negative texels by 0 instead of failing"}},
+    productOptions("ibl", {{"output", true, "package directory (also -o)"}}),
     1, 1, runIbl});
 
 }  // namespace prtbake::cli

@@ -3,8 +3,11 @@
 #include <cstdio>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "cli.h"
 #include "jobs.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
 #include "prtbake/runtime.h"
@@ -16,29 +19,13 @@ int runLut(const CommandLine& cl) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string out = cl.get("output");
   if (out.empty()) throw UsageError("lut", "missing -o OUT.exr");
-  LutOptions o;
-  // Ranges are checked by validateLutOptions so that the library and the CLI say the same.
-  o.size = int(cl.getInt("size", o.size, -(1L << 30), 1L << 30));
-  o.samples = int(cl.getInt("samples", o.samples, -(1L << 30), 1L << 30));
-  o.ndf = parseLutNdf(cl.get("ndf", "ggx"));
-  o.visibility = parseLutVisibility(cl.get("visibility", "smith-correlated"));
-  o.multiscatter = cl.has("multiscatter");
-  o.cloth = cl.has("cloth");
-  o.kullaConty = cl.has("kulla-conty");
-  o.alphaDirect = cl.has("alpha-direct");
-  o.fastMath = cl.has("fast-math");
-  if (cl.has("samples") && cl.has("tolerance"))
-    throw UsageError("--tolerance", "cannot be combined with --samples (give one or the other)");
-  if (cl.has("max-samples") && !cl.has("tolerance"))
-    throw UsageError("--max-samples", "only applies with --tolerance");
-  if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
-  o.toleranceMaxSamples = int(cl.getInt("max-samples", kLutMaxSamples, -(1L << 30), 1L << 30));
-  validateLutOptions(o);
+  const nlohmann::json p = productParams(cl, "lut", {{"exr", out}, {"json", out + ".json"}});
+  const LutOptions o = jobs::lutOptionsFrom(p);
 
   Runtime& rt = jobs::processRuntime(cl.device());
   const LutResult lut = computeLut(rt, o);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  writeLut(lut, out, cl.has("half"), seconds);
+  const double seconds = secondsSince(t0);
+  writeLut(lut, out, p["half"].get<bool>(), seconds);
   char line[256];
   if (o.tolerance > 0) {
     std::snprintf(line, sizeof line,
@@ -63,22 +50,7 @@ PRTBAKE_COMMAND(Command{
     "           [--kulla-conty] [--alpha-direct] [--half] [--fast-math]\n"
     "Channels: R = A, G = B, B = multiscatter E or cloth; --kulla-conty adds E and Eavg.\n"
     "The sidecar OUT.json states the definition, axes, samples, error estimate and timings.",
-    {
-        {"output", true, "output OpenEXR path (also -o); the sidecar is OUT.json"},
-        {"size", true, "table size N (N x N texels, 1..8192; default 128)"},
-        {"samples", true, "samples per texel (default 1024)"},
-        {"tolerance", true, "the samples per texel that bring 95 % of the texels within E in every channel, "
-                            "predicted from a pilot (docs/accuracy.md)"},
-        {"max-samples", true, "with --tolerance: the most samples per texel (64..2^20, default 2^20)"},
-        {"ndf", true, "ggx (default) or beckmann"},
-        {"visibility", true, "smith-correlated (default), smith-separable or schlick-ggx (k = alpha/2)"},
-        {"multiscatter", false, "B channel: E = A + B for multiple-scattering compensation (Filament)"},
-        {"cloth", false, "B channel: Charlie NDF with Ashikhmin visibility"},
-        {"kulla-conty", false, "extra channels E(mu, r) and Eavg(r) (Kulla-Conty)"},
-        {"alpha-direct", false, "roughness axis is alpha itself (default alpha = r^2)"},
-        {"half", false, "store 16-bit half floats (default float32)"},
-        {"fast-math", false, "native sqrt/divide/exp and -cl-fast-relaxed-math (see docs/lut.md)"},
-    },
+    productOptions("lut", {{"output", true, "output OpenEXR path (also -o); the sidecar is OUT.json"}}),
     0, 0, runLut});
 
 }  // namespace

@@ -54,7 +54,7 @@ int previewEnv(const CommandLine& cl, const std::string& input, const std::strin
     lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
     lo.compact = true;
     env = loadEnvironment(input, lo);
-    env.yawDegrees = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
+    env.yawDegrees = cl.getDouble("yaw", 0.0, -jobs::kMaxYawDegrees, jobs::kMaxYawDegrees);
     EnvProjectOptions po;
     po.order = int(cl.getInt("order", 3, 1, kMaxShOrder));
     po.window = parseWindow(cl.get("window", "none"));
@@ -124,6 +124,16 @@ void parseImageSize(const std::string& s, MeshPreviewOptions& o) {
   o.width = int(w), o.height = int(h);
 }
 
+}  // namespace
+
+void meshViewFromCli(const CommandLine& cl, MeshPreviewOptions& o) {
+  parseImageSize(cl.get("size"), o);
+  parseView(cl.get("view"), o);
+  o.lightRotationDeg = cl.getDouble("rotate-light", 0.0, -jobs::kMaxYawDegrees, jobs::kMaxYawDegrees);
+}
+
+namespace {
+
 // The environment's radiance SH: a JSON written by prtbake env (must hold radiance).
 ShCoeffs readRadianceJson(const std::string& path) {
   ShCoeffs sh = readShJson(path);
@@ -143,9 +153,7 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
     throw UsageError("preview", "mesh previews need --transport T.npy (or a glTF copy with _PRT_* attributes)");
   if (envPath.empty()) throw UsageError("preview", "mesh previews need --env SH.json (radiance coefficients)");
   MeshPreviewOptions o;
-  parseImageSize(cl.get("size"), o);
-  parseView(cl.get("view"), o);
-  o.lightRotationDeg = cl.getDouble("rotate-light", 0.0, -36000.0, 36000.0);
+  meshViewFromCli(cl, o);
   ToneMap tm;
   tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
   // Everything is read and checked before the device starts.
@@ -184,12 +192,17 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
 }
 
 int previewPrefilter(const CommandLine& cl, const std::string& input, const std::string& output) {
-  const PrefilterOptions o = prefilterOptionsFromCli(cl, "base", 128);
+  // The chain's options are prefilter's (declared there), the base size named --base here.
+  std::map<std::string, std::string> texts;
+  for (const auto& [key, text] : keyTexts(cl))
+    if (key != "size" && key != "base") texts[key] = text;
+  texts["size"] = cl.get("base", "128");
+  PrefilterOptions o = jobs::prefilterOptionsFrom(productParams("prefilter", texts, nullptr));
   const int width = panelWidth(cl, 256);
   EnvLoadOptions lo;
   lo.layout = cl.getChoice("layout", "auto", {"auto", "faces", "cross", "latlong", "games202"});
   EnvMap env = loadEnvironment(input, lo);
-  env.yawDegrees = cl.getDouble("yaw", 0.0, -36000.0, 36000.0);
+  env.yawDegrees = cl.getDouble("yaw", 0.0, -jobs::kMaxYawDegrees, jobs::kMaxYawDegrees);
   Runtime& rt = jobs::processRuntime(cl.device());
   const PrefilterResult r = prefilterEnvironment(rt, env, o);
   writePrefilterPreviewPng(output, rt, r, width, input);

@@ -6,6 +6,8 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "cli.h"
 #include "glossy_cli.h"
 #include "jobs.h"
@@ -31,31 +33,15 @@ int runTransport(const CommandLine& cl) {
   const std::string out = cl.get("output");
   if (out.empty()) throw UsageError("transport", "missing -o OUT.npy");
   if (cl.getChoice("transfer", "vector", {"vector", "matrix"}) == "matrix") return runGlossyTransport(cl);
-  for (const char* name : {"order-out", "order-in", "dtype", "brdf", "cpca", "cpca-error", "cpca-weights"})
-    if (cl.has(name)) throw UsageError(std::string("--") + name, "only applies to --transfer matrix");
-  TransportOptions o;
-  o.mode = parseTransportMode(cl.get("mode", "shadowed"));
-  o.order = int(cl.getInt("order", 3, 1, kMaxTransportOrder));
-  o.samples = int(cl.getInt("samples", 1024, 1, 1 << 24));
-  if (cl.has("samples") && cl.has("tolerance"))
-    throw UsageError("--tolerance", "cannot be combined with --samples (give one or the other)");
-  if (cl.has("max-samples") && !cl.has("tolerance"))
-    throw UsageError("--max-samples", "only applies with --tolerance");
-  if (cl.has("tolerance")) o.tolerance = cl.getDouble("tolerance", 0, 1e-9, 1.0);
-  o.toleranceMaxSamples = int(cl.getInt("max-samples", 65536, 2 * kTolerancePilotStart, 1 << 24));
-  if (cl.has("sampler")) o.sampler = parseTransportSampler(cl.get("sampler"));
-  o.seed = uint64_t(cl.getInt("seed", 0, 0, (1L << 62)));
-  o.bounces = int(cl.getInt("bounces", 3, 1, 64));
-  o.bounceTolerance = cl.getDouble("bounce-tolerance", 1e-4, 0, 1e30);
-  if (cl.has("albedo")) {
-    const double a = cl.getDouble("albedo", 1, 0, 1);
-    o.albedoOverride = std::array<float, 3>{float(a), float(a), float(a)};
-  }
-  if (cl.has("bounces") && o.mode != TransportMode::Interreflected)
-    throw UsageError("--bounces", "only applies to --mode interreflected");
+  for (const std::string& name : optionsOnlyOf("glossy", "transport"))
+    if (cl.has(name)) throw UsageError("--" + name, "only applies to --transfer matrix");
   if (cl.has("gltf") && !(input.size() > 5 && (input.substr(input.size() - 5) == ".gltf" ||
                                                 input.substr(input.size() - 4) == ".glb")))
     throw UsageError("--gltf", "a glTF copy needs a glTF input (" + input + " is not .gltf/.glb)");
+  nlohmann::json kinds = {{"npy", out}, {"json", sidecarPath(out)}};
+  for (const char* kind : {"gltf", "games202"})
+    if (cl.has(kind)) kinds[kind] = cl.get(kind);
+  const TransportOptions o = jobs::transportOptionsFrom(productParams(cl, "transport", kinds));
 
   // The OpenCL device starts while the mesh loads.
   auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
@@ -101,6 +87,22 @@ int runTransport(const CommandLine& cl) {
   return 0;
 }
 
+// The options of both transfers (transport's and glossy's keys) and the command's own.
+std::vector<OptionSpec> transportOptions() {
+  std::vector<OptionSpec> options = productOptions(
+      "transport", {{"output", true, "the .npy output (-o); the JSON sidecar goes beside it"},
+                    {"gltf", true, "write a copy of the glTF input with _PRT_T* vertex attributes"},
+                    {"games202", true, "write a GAMES202 transport.txt"},
+                    {"transfer", true, "vector (diffuse transport, default) | matrix (glossy transfer matrices)"},
+                    {"cpca", true, "matrix: also compress with K,P (short for --cpca-clusters K --cpca-vectors P)"}});
+  for (const OptionSpec& g : productOptions("glossy", {})) {
+    bool known = false;
+    for (const OptionSpec& t : options) known = known || t.name == g.name;
+    if (!known) options.push_back({g.name, g.takesValue, "matrix: " + g.help});
+  }
+  return options;
+}
+
 PRTBAKE_COMMAND(Command{
     "transport", "per-vertex PRT transport in SH (unshadowed, shadowed, interreflected)",
     "prtbake transport MESH -o OUT.npy [--mode unshadowed|shadowed|interreflected] [--bounces B]\n"
@@ -113,29 +115,7 @@ PRTBAKE_COMMAND(Command{
     "Writes OUT.npy (float32 [V, n^2], or [V, 3, n^2] for coloured interreflection) and OUT.json.\n"
     "--transfer matrix: glossy transfer matrices [V, n_out^2, n_in^2] (docs/glossy.md), streamed to OUT.npy\n"
     "by vertex blocks; --cpca also writes OUT.cpca.npz.",
-    {{"output", true, "the .npy output (-o); the JSON sidecar goes beside it"},
-     {"mode", true, "unshadowed | shadowed | interreflected (default shadowed)"},
-     {"bounces", true, "interreflection bounces, 1..64 (default 3)"},
-     {"bounce-tolerance", true, "stop when a bounce adds less than this (default 1e-4; 0: never)"},
-     {"order", true, "SH order 1..8 (default 3)"},
-     {"samples", true, "directions per vertex (default 1024)"},
-     {"tolerance", true, "the samples per vertex that bring 95 % of the vertices within E, predicted from a pilot "
-                       "(docs/accuracy.md)"},
-     {"max-samples", true, "with --tolerance: the most samples per vertex (default 65536)"},
-     {"sampler", true, "hammersley (default) | stratified | random"},
-     {"seed", true, "sample set seed (default 0)"},
-     {"albedo", true, "grey albedo for every vertex, overriding the file's"},
-     {"gltf", true, "write a copy of the glTF input with _PRT_T* vertex attributes"},
-     {"games202", true, "write a GAMES202 transport.txt"},
-     {"transfer", true, "vector (diffuse transport, default) | matrix (glossy transfer matrices)"},
-     {"order-out", true, "matrix: SH order of the transferred radiance, 2..6 (default --order)"},
-     {"order-in", true, "matrix: SH order of the environment, 2..6 (default --order)"},
-     {"dtype", true, "matrix: float32 (default) | float16"},
-     {"brdf", true, "matrix: write exit-radiance matrices for ggx:R[:F0] or lambertian[:A]"},
-     {"cpca", true, "matrix: also compress with K,P (clusters, PCA vectors) into OUT.cpca.npz"},
-     {"cpca-error", true, "matrix: also compress, choosing K and P for this relative RMS error"},
-     {"cpca-weights", true, "matrix: CPCA weights float32 (default) | int8 (with a scale per cluster and vector)"}},
-    1, 1, runTransport});
+    transportOptions(), 1, 1, runTransport});
 
 }  // namespace
 }  // namespace prtbake::cli

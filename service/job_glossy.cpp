@@ -20,17 +20,6 @@
 #include "shard.h"
 
 namespace prtbake::jobs {
-namespace {
-
-KeySpec integer(const std::string& name, json def, double lo, double hi) {
-  return {name, ValueKind::Integer, std::move(def), lo, hi, {}};
-}
-KeySpec number(const std::string& name, json def, double lo, double hi) {
-  return {name, ValueKind::Number, std::move(def), lo, hi, {}};
-}
-KeySpec choice(const std::string& name, const std::string& def, std::vector<std::string> choices) {
-  return {name, ValueKind::Choice, def, 0, 0, std::move(choices)};
-}
 
 GlossyOptions glossyOptionsFrom(const json& p) {
   GlossyOptions o;
@@ -54,7 +43,7 @@ CpcaOptions cpcaOptionsFrom(const json& p) {
   if (!p["cpca_clusters"].is_null()) {
     c.clusters = p["cpca_clusters"].get<int>();
     c.vectors = p["cpca_vectors"].get<int>();
-  } else {
+  } else if (!p["cpca_error"].is_null()) {
     c.targetError = p["cpca_error"].get<double>();
   }
   c.weightBits = p["cpca_weights"].get<std::string>() == "int8" ? 8 : 32;
@@ -68,8 +57,11 @@ std::vector<double> brdfFrom(const json& p, int orderOut) {
   s.lambertian = b == "lambertian";
   s.roughness = p["roughness"].get<double>();
   s.f0 = p["f0"].get<double>();
+  s.albedo = p["brdf_albedo"].get<double>();
   return brdfMatrixLocal(s, orderOut);
 }
+
+namespace {
 
 // The bake of vertices [first, first + count) streamed to `npyPath`; values kept when asked.
 GlossyStats bake(Runtime& rt, const Mesh& mesh, const json& p, GlossyOptions o, const std::string& npyPath,
@@ -182,23 +174,27 @@ JobType glossyJobType() {
   t.name = "glossy";
   t.input = InputKind::File;
   t.outputKinds = {"npy", "json", "cpca"};
-  t.keys = {choice("mode", "shadowed", {"unshadowed", "shadowed", "interreflected"}),
-            integer("order", 3, kMinGlossyOrder, kMaxGlossyOrder),
-            integer("order_out", nullptr, kMinGlossyOrder, kMaxGlossyOrder),
-            integer("order_in", nullptr, kMinGlossyOrder, kMaxGlossyOrder),
-            integer("samples", 1024, 1, 1 << 24),
-            integer("seed", 0, 0, 4294967295.0),
-            integer("bounces", 3, 1, 64),
-            number("bounce_tolerance", 1e-4, 0.0, 1.0),
-            number("albedo", nullptr, 0.0, 1.0),
-            choice("dtype", "float32", {"float32", "float16"}),
-            choice("brdf", "none", {"none", "ggx", "lambertian"}),
-            number("roughness", 0.5, 0.05, 1.0),
-            number("f0", 0.04, 0.0, 1.0),
-            integer("cpca_clusters", nullptr, 1, 65536),
-            integer("cpca_vectors", nullptr, 0, kMaxCpcaVectors),
-            number("cpca_error", nullptr, 1e-6, 0.999),
-            choice("cpca_weights", "float32", {"float32", "int8"})};
+  t.keys = {choice("mode", "shadowed", {"unshadowed", "shadowed", "interreflected"}, "what the transfer includes"),
+            integer("order", 3, kMinGlossyOrder, kMaxGlossyOrder, "SH order of both sides"),
+            integer("order_out", nullptr, kMinGlossyOrder, kMaxGlossyOrder,
+                    "SH order of the transferred radiance (none: order)"),
+            integer("order_in", nullptr, kMinGlossyOrder, kMaxGlossyOrder, "SH order of the environment (none: order)"),
+            integer("samples", 1024, 1, 1 << 24, "directions per vertex"),
+            integer("seed", 0, 0, 4294967295.0, "sample set seed"),
+            integer("bounces", 3, 1, 64, "interreflection bounces (interreflected only)"),
+            number("bounce_tolerance", 1e-4, 0.0, 1.0, "stop when a bounce adds less than this (0: never)"),
+            number("albedo", nullptr, 0.0, 1.0, "a grey albedo for every vertex, overriding the file's"),
+            choice("dtype", "float32", {"float32", "float16"}, "the matrices' element type"),
+            choice("brdf", "none", {"none", "ggx", "lambertian"},
+                   "write exit-radiance matrices for this BRDF (command line: also ggx:R[:F0] or lambertian[:A])"),
+            number("roughness", 0.5, 0.05, 1.0, "brdf ggx: perceptual roughness (alpha = r^2)"),
+            number("f0", 0.04, 0.0, 1.0, "brdf ggx: reflectance at normal incidence"),
+            number("brdf_albedo", 1.0, 0.0, 1.0, "brdf lambertian: its albedo"),
+            integer("cpca_clusters", nullptr, 1, 65536, "CPCA clusters K (with cpca_vectors)"),
+            integer("cpca_vectors", nullptr, 0, kMaxCpcaVectors, "CPCA vectors P per cluster (with cpca_clusters)"),
+            number("cpca_error", nullptr, 1e-6, 0.999, "CPCA: choose K and P for this relative RMS error"),
+            choice("cpca_weights", "float32", {"float32", "int8"},
+                   "CPCA weights (int8: with a scale per cluster and vector)")};
   t.check = [](const json& raw, const json& p) {
     std::vector<std::pair<std::string, std::string>> problems;
     const bool outputsObject = raw.contains("outputs") && raw["outputs"].is_object();
@@ -215,6 +211,10 @@ JobType glossyJobType() {
       problems.push_back({"cpca", "a 'cpca' output and cpca_clusters/cpca_vectors or cpca_error go together"});
     if ((raw.contains("roughness") || raw.contains("f0")) && p["brdf"] != "ggx")
       problems.push_back({"roughness", "roughness and f0 only apply to brdf 'ggx'"});
+    if (raw.contains("brdf_albedo") && p["brdf"] != "lambertian")
+      problems.push_back({"brdf_albedo", "only applies to brdf 'lambertian'"});
+    if (raw.contains("cpca_weights") && !raw.contains("cpca_clusters") && !raw.contains("cpca_error"))
+      problems.push_back({"cpca_weights", "goes with cpca_clusters/cpca_vectors or cpca_error"});
     return problems;
   };
   t.execute = runGlossy;

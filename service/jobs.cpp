@@ -20,12 +20,6 @@ namespace {
 
 const std::vector<std::string> kCommonKeys = {"id", "type", "input", "outputs"};
 
-std::string joinChoices(const std::vector<std::string>& v, const char* sep = "|") {
-  std::string s;
-  for (const auto& c : v) s += (s.empty() ? "" : sep) + c;
-  return s;
-}
-
 std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates) {
   const std::string m = closestMatch(word, candidates);
   return m.empty() ? "" : " (did you mean '" + m + "'?)";
@@ -43,72 +37,6 @@ bool validId(const std::string& id) {
   return std::all_of(id.begin(), id.end(), [](char c) {
     return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-';
   });
-}
-
-std::string formatNumber(double v) {
-  std::ostringstream ss;
-  ss << v;
-  return ss.str();
-}
-
-// Checks one key's value against its spec; returns the problem text or "".
-std::string checkValue(const KeySpec& k, const json& v, json* normalised) {
-  switch (k.kind) {
-    case ValueKind::Integer: {
-      double d;
-      if (v.is_number_integer() || v.is_number_unsigned()) {
-        d = v.get<double>();
-      } else if (v.is_number_float() && std::isfinite(v.get<double>()) &&
-                 v.get<double>() == std::floor(v.get<double>())) {
-        d = v.get<double>();
-      } else {
-        return "expected an integer, got " + shown(v);
-      }
-      if (d < k.lo || d > k.hi)
-        return formatNumber(d) + " is out of range [" + formatNumber(k.lo) + ", " + formatNumber(k.hi) + "]";
-      *normalised = static_cast<long long>(d);
-      return "";
-    }
-    case ValueKind::Number: {
-      if (!v.is_number()) return "expected a number, got " + shown(v);
-      const double d = v.get<double>();
-      if (!std::isfinite(d) || d < k.lo || d > k.hi)
-        return formatNumber(d) + " is out of range [" + formatNumber(k.lo) + ", " + formatNumber(k.hi) + "]";
-      *normalised = d;
-      return "";
-    }
-    case ValueKind::Boolean:
-      if (!v.is_boolean()) return "expected true or false, got " + shown(v);
-      *normalised = v;
-      return "";
-    case ValueKind::Choice: {
-      if (!v.is_string()) return "expected one of " + joinChoices(k.choices) + ", got " + shown(v);
-      const std::string s = v.get<std::string>();
-      if (std::find(k.choices.begin(), k.choices.end(), s) == k.choices.end())
-        return "unknown value '" + s + "' (expected " + joinChoices(k.choices) + ")" +
-               (closestMatch(s, k.choices).empty() ? "" : "; did you mean '" + closestMatch(s, k.choices) + "'?");
-      *normalised = s;
-      return "";
-    }
-    case ValueKind::Path:
-      if (!v.is_string() || v.get<std::string>().empty()) return "expected a path, got " + shown(v);
-      *normalised = v;
-      return "";
-    case ValueKind::NumberList: {
-      if (!v.is_array() || v.empty() || v.size() > 16) return "expected an array of 1 to 16 numbers, got " + shown(v);
-      json out = json::array();
-      for (const json& x : v) {
-        if (!x.is_number()) return "expected an array of 1 to 16 numbers, got " + shown(v);
-        const double d = x.get<double>();
-        if (!std::isfinite(d) || d < k.lo || d > k.hi)
-          return formatNumber(d) + " is out of range [" + formatNumber(k.lo) + ", " + formatNumber(k.hi) + "]";
-        out.push_back(d);
-      }
-      *normalised = out;
-      return "";
-    }
-  }
-  return "";
 }
 
 class JobValidator {
@@ -141,22 +69,15 @@ class JobValidator {
       if (std::find(known.begin(), known.end(), it.key()) != known.end()) continue;
       problem(it.key(), "unknown key for " + t.name + " jobs" + didYouMean(it.key(), known));
     }
+    KeyProblems keyProblems;
+    params.update(normalise(t.keys, j, &keyProblems));
+    for (const auto& [key, what] : keyProblems) problem(key, what);
     for (const auto& k : t.keys) {
-      auto it = j.find(k.name);
-      if (it == j.end()) {
-        params[k.name] = k.defaultValue;
-        continue;
-      }
-      json value;
-      const std::string what = checkValue(k, *it, &value);
-      if (!what.empty()) problem(k.name, what);
-      if (what.empty() && k.kind == ValueKind::Path) {
-        value = resolve(value.get<std::string>());
-        struct stat st {};
-        if (::stat(value.get<std::string>().c_str(), &st) != 0)
-          problem(k.name, "file does not exist: " + value.get<std::string>());
-      }
-      params[k.name] = value;
+      if (k.kind != ValueKind::Path || !params[k.name].is_string()) continue;
+      params[k.name] = resolve(params[k.name].get<std::string>());
+      struct stat st {};
+      if (::stat(params[k.name].get<std::string>().c_str(), &st) != 0)
+        problem(k.name, "file does not exist: " + params[k.name].get<std::string>());
     }
     checkInput(j, &params);
     checkOutputs(j, &params);

@@ -16,25 +16,18 @@
 
 #include <nlohmann/json.hpp>
 
+#include "options.h"
 #include "prtbake/runtime.h"
+#include "prtbake/env.h"
+#include "prtbake/glossy.h"
+#include "prtbake/ibl.h"
+#include "prtbake/lut.h"
+#include "prtbake/prefilter.h"
 #include "prtbake/transport.h"
 
 namespace prtbake::jobs {
 
 using nlohmann::json;
-
-// Path: a file that must exist, relative paths resolved like `input`. NumberList: a JSON
-// array of 1 to 16 numbers, each in [lo, hi].
-enum class ValueKind { Integer, Number, Boolean, Choice, Path, NumberList };
-
-// One key of a job type, named and typed like the command-line option it mirrors.
-struct KeySpec {
-  std::string name;
-  ValueKind kind;
-  json defaultValue;                 // null: the key is optional and has no default
-  double lo = 0, hi = 0;             // inclusive range of Integer and Number keys
-  std::vector<std::string> choices;  // the values of a Choice key
-};
 
 struct Job;
 
@@ -79,8 +72,25 @@ struct JobType {
   bool splittable = false;
 };
 
-// The TransportOptions of a transport job's normalised parameters (job_types.cpp).
+// A product's library options from its normalised parameters (a job's, or the command
+// line's: productParams in cli.h), in job_types.cpp; the glossy ones in job_glossy.cpp.
+EnvLoadOptions envLoadOptionsFrom(const json& params, bool compact);
+EnvProjectOptions envProjectOptionsFrom(const json& params);  // order auto: kAutoReferenceOrder
 TransportOptions transportOptionsFrom(const json& params);
+LutOptions lutOptionsFrom(const json& params);  // validated
+PrefilterOptions prefilterOptionsFrom(const json& params);
+IblPackageOptions iblOptionsFrom(const json& params);  // validated
+GlossyOptions glossyOptionsFrom(const json& params);
+CpcaOptions cpcaOptionsFrom(const json& params);
+// The exit-radiance BRDF matrix of keys brdf, roughness and f0 (empty for brdf none).
+std::vector<double> brdfFrom(const json& params, int orderOut);
+
+// Order "auto" of env: the projection at kAutoReferenceOrder is cut to the smallest order up
+// to kAutoMaxOrder whose truncation error (relative L2 over the sphere, in the quantity asked,
+// against that reference) is within the key `tolerance` (null: 0.01); r and po are updated
+// (window and quantity applied again) and the sidecar's "order_selection" returned.
+constexpr int kAutoReferenceOrder = 24, kAutoMaxOrder = 20;
+json selectEnvOrder(EnvProjectResult& r, EnvProjectOptions& po, const json& tolerance);
 
 // The glossy transfer job (job_glossy.cpp): its type, the type of one shard's vertex range
 // of a split glossy job, and the merge of those ranges (after cmd_merge.cpp has checked every
@@ -88,6 +98,15 @@ TransportOptions transportOptionsFrom(const json& params);
 JobType glossyJobType();
 const JobType& glossyPartialType();
 std::vector<std::string> mergeGlossySplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
+
+// The parameters of `type` from command-line texts (key → text, flags ""): each value read
+// by cliValue and checked by checkValue as a job's is, defaults filled, then the type's rules
+// run as on a job whose outputs are `outputs` (options.cpp). Problems go to *problems.
+json paramsFromText(const JobType& type, const std::map<std::string, std::string>& texts, const json& outputs,
+                    KeyProblems* problems);
+
+// A key's default and range or values, as --help and docs/jobs.md show them: "1..32, default 3".
+std::string describeRange(const KeySpec& k);
 
 // Every job type of this build (job_types.cpp).
 const std::vector<JobType>& jobTypes();

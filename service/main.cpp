@@ -9,6 +9,7 @@
 #include <string>
 
 #include "cli.h"
+#include "jobs.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
@@ -180,6 +181,55 @@ std::string CommandLine::getChoice(const std::string& name, const std::string& f
   std::string list;
   for (const auto& c : choices) list += (list.empty() ? "" : "|") + c;
   throw UsageError("--" + name, "unknown value '" + v + "' (expected " + list + ")");
+}
+
+std::vector<OptionSpec> productOptions(const std::string& type, std::vector<OptionSpec> extra) {
+  std::vector<OptionSpec> options;
+  for (const auto& k : jobs::findJobType(type)->keys) {
+    if (!k.onCommandLine) continue;
+    const std::string range = jobs::describeRange(k);
+    options.push_back({k.cliName().substr(2), k.kind != jobs::ValueKind::Boolean,
+                       k.help + (range.empty() ? "" : " (" + range + ")")});
+  }
+  for (auto& o : extra) options.push_back(std::move(o));
+  return options;
+}
+
+std::vector<std::string> optionsOnlyOf(const std::string& a, const std::string& b) {
+  std::vector<std::string> names;
+  const auto& other = jobs::findJobType(b)->keys;
+  for (const auto& k : jobs::findJobType(a)->keys)
+    if (k.onCommandLine && std::none_of(other.begin(), other.end(), [&](const jobs::KeySpec& o) { return o.name == k.name; }))
+      names.push_back(k.cliName().substr(2));
+  return names;
+}
+
+std::map<std::string, std::string> keyTexts(const CommandLine& cl) {
+  std::map<std::string, std::string> texts;
+  for (const auto& [name, text] : cl.options) {
+    std::string key = name;
+    std::replace(key.begin(), key.end(), '-', '_');
+    texts[key] = text;
+  }
+  return texts;
+}
+
+nlohmann::json productParams(const std::string& type, const std::map<std::string, std::string>& texts,
+                             const nlohmann::json& outputs) {
+  jobs::KeyProblems problems;
+  const jobs::JobType& t = *jobs::findJobType(type);
+  nlohmann::json params = jobs::paramsFromText(t, texts, outputs, &problems);
+  if (!problems.empty()) {
+    const auto& [key, what] = problems.front();
+    std::string option = key == "outputs" ? type : "--" + key;
+    std::replace(option.begin(), option.end(), '_', '-');
+    throw UsageError(option, what);
+  }
+  return params;
+}
+
+nlohmann::json productParams(const CommandLine& cl, const std::string& type, const nlohmann::json& outputs) {
+  return productParams(type, keyTexts(cl), outputs);
 }
 
 void status(const CommandLine& cl, const std::string& text) {

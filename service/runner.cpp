@@ -17,6 +17,7 @@
 #include "manifest.h"
 #include "progress.h"
 #include "prtbake/atomic_file.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 
 namespace prtbake::jobs {
@@ -25,8 +26,6 @@ namespace fs = std::filesystem;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 std::string formatSeconds(double s) {
   std::ostringstream ss;

@@ -12,6 +12,7 @@
 
 #include "core/embedded_kernels.h"
 #include "prtbake/atomic_file.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 
@@ -234,7 +235,7 @@ cl::Program Runtime::program(const std::string& file, const std::string& options
     throw DeviceError(file, "kernel build failed on " + deviceLabel() + " with options '" +
                                 fullOptions + "':\n" + trim(log));
   }
-  buildSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  buildSeconds_ += secondsSince(t0);
   programs_.emplace(key, program);
   return program;
 }

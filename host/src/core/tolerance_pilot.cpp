@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include "prtbake/clock.h"
 
 namespace prtbake::detail {
 namespace {
@@ -79,7 +80,7 @@ ToleranceReport runTolerancePilot(const PilotEvaluate& evaluate, size_t stride, 
   rep.samples = int(std::min<double>(rounded, maxSamples));
   rep.capped = rounded > maxSamples;
   rep.predictedError = lastD / (std::pow(2.0, p) - 1.0) * std::pow(double(n) / rep.samples, p);
-  rep.pilotSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  rep.pilotSeconds = secondsSince(t0);
   return rep;
 }
 

@@ -17,16 +17,15 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <exception>
 #include <filesystem>
 #include <mutex>
-#include <thread>
 
 #include "core/env_validate.h"
+#include "core/parallel.h"
 #include "io/exr_cube.h"
 #include "io/image_read.h"
 #include "prtbake/envmap.h"
@@ -224,32 +223,25 @@ EnvMap fromFaceFiles(const std::string& dir, const std::vector<std::string>& fil
   std::array<Face, 6> faces;
   std::mutex mutex;  // guards the cube's allocation
   bool allocated = false;
-  std::atomic<int> next{0};
-  auto worker = [&] {
-    for (int f; (f = next++) < 6;) {
-      Face& face = faces[size_t(f)];
-      try {
-        const Image img = detail::readImage(files[size_t(f)], decode, compact);
-        face.width = img.width, face.height = img.height, face.storage = storageOf(img);
-        if (img.width != img.height) continue;  // reported below, in face order
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (!allocated) env = emptyCube(img.width, dir, layoutName, img), allocated = true;
-        }
-        if (img.width == env.width && face.storage == env.storage()) {
-          copyFace(img, 0, 0, img.width, false, env, f);
-          face.placed = true;
-        }
-      } catch (...) {
-        face.error = std::current_exception();
+  // The six faces decode at once, one thread each.
+  detail::parallelEach(6, 6, [&](size_t f) {
+    Face& face = faces[f];
+    try {
+      const Image img = detail::readImage(files[f], decode, compact);
+      face.width = img.width, face.height = img.height, face.storage = storageOf(img);
+      if (img.width != img.height) return;  // reported below, in face order
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!allocated) env = emptyCube(img.width, dir, layoutName, img), allocated = true;
       }
+      if (img.width == env.width && face.storage == env.storage()) {
+        copyFace(img, 0, 0, img.width, false, env, int(f));
+        face.placed = true;
+      }
+    } catch (...) {
+      face.error = std::current_exception();
     }
-  };
-  const unsigned threads = std::max(1u, std::min(6u, std::thread::hardware_concurrency()));
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+  });
   for (const Face& face : faces)
     if (face.error) std::rethrow_exception(face.error);
   for (size_t f = 0; f < 6; ++f) {

@@ -8,6 +8,7 @@
 
 #include "core/constants.h"
 #include "core/kernel_options.h"
+#include "prtbake/clock.h"
 #include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
@@ -234,7 +235,7 @@ void addProjection(Runtime& rt, const EnvMap& env, int firstRow, int fullHeight,
     kernel.setArg(5, h);
     kernel.setArg(6, partials);
   }
-  result.uploadSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  result.uploadSeconds += secondsSince(t0);
 
   // One row per work-item; on CPUs small work-groups (4 rows) keep the split over
   // PoCL's threads even while amortising the per-group launch cost.

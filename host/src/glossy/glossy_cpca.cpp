@@ -21,9 +21,10 @@
 #include <cstring>
 #include <thread>
 
+#include "core/parallel.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
-#include "core/parallel.h"
 
 namespace prtbake {
 using detail::parallelFor;
@@ -478,7 +479,7 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   }
   r.totalError = sn > 0 ? std::sqrt(se / sn) : 0;
   r.rmsVertexError = V ? std::sqrt(sr / double(V)) : 0;
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.seconds = secondsSince(t0);
   return r;
 }
 

@@ -5,6 +5,7 @@
 
 #include "core/constants.h"
 #include "core/gauss_legendre.h"
+#include "geometry/ray_triangle.h"
 #include "glossy/glossy_detail.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
@@ -13,27 +14,6 @@
 
 namespace prtbake {
 namespace {
-
-struct Hit {
-  double t, u, v;
-  bool ok;
-};
-
-// Möller–Trumbore in double, barycentrics accepted on the closed triangle (as
-// transport_reference.cpp).
-Hit intersect(const double* o, const double* d, const double* v0, const double* v1, const double* v2, double tMax) {
-  double e1[3], e2[3], s[3];
-  for (int c = 0; c < 3; ++c) e1[c] = v1[c] - v0[c], e2[c] = v2[c] - v0[c], s[c] = o[c] - v0[c];
-  const double p[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-  const double det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
-  if (det == 0) return {0, 0, 0, false};
-  const double inv = 1 / det;
-  const double u = (s[0] * p[0] + s[1] * p[1] + s[2] * p[2]) * inv;
-  const double q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
-  const double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv;
-  const double t = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
-  return {t, u, v, t > 0 && t < tMax && u >= 0 && v >= 0 && u + v <= 1};
-}
 
 // A rotation taking +z to the unit vector n (columns t, b, n; right-handed).
 Rotation frameOf(const std::array<double, 3>& n) {
@@ -106,11 +86,12 @@ GlossyResult computeGlossyReference(const Mesh& mesh, const GlossyOptions& o, co
       }
       const double w = dirs[4 * s + 3];
       shEval(nmax, dir[0], dir[1], dir[2], y.data());
-      Hit best{setup.tMax, 0, 0, false};
+      detail::TriangleHit best{setup.tMax, 0, 0, false};
       size_t bestTri = 0;
       if (visibility)
         for (size_t t = 0; t < nt; ++t) {
-          const Hit h = intersect(org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], best.t);
+          const detail::TriangleHit h = detail::intersectTriangle(
+              org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], best.t);
           if (h.ok) {
             best = h, bestTri = t;
             if (!bounce) break;

@@ -7,9 +7,10 @@
 #include <nlohmann/json.hpp>
 
 #include "prtbake/atomic_file.h"
-#include "prtbake/ibl.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
+#include "prtbake/ibl.h"
 #include "prtbake/lut.h"
 
 namespace prtbake {
@@ -26,10 +27,6 @@ constexpr int kLambertianMaxSize = 64;
 // its r = 0 level (a thin ring at the horizon) is the cut's slowest case: 25 s at 64², over 5
 // minutes at 256² (venice_sunset, 2 cores).
 constexpr int kCharlieMaxSize = 64;
-
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 nlohmann::json shJson(const EngineSh& sh) {
   nlohmann::json j = nlohmann::json::array();

@@ -10,6 +10,7 @@
 #include "core/kernel_options.h"
 #include "lut/lut_detail.h"
 #include "lut_sampling.clh"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/runtime.h"
 #include "core/radical_inverse.h"
@@ -17,10 +18,6 @@
 
 namespace prtbake {
 namespace {
-
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The per-sample table of lut_sampling.clh for points first … first + count − 1 of the
 // `samples`-point Hammersley set, in double then rounded to float.

@@ -16,10 +16,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <thread>
 
 #include "core/constants.h"
 #include "core/gauss_legendre.h"
+#include "core/parallel.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
 
@@ -31,6 +31,9 @@ std::vector<LutPoint> texelPoints(int n);
 }  // namespace detail
 
 namespace {
+
+// Host threads of the double-precision reference.
+constexpr int kReferenceThreads = 4;
 
 const detail::GaussRule& gauss8() {
   static const detail::GaussRule g = detail::gaussLegendre(8);
@@ -198,21 +201,11 @@ LutValues evaluateLutReference(const LutOptions& options, const std::vector<LutP
   LutValues v;
   v.a.resize(n), v.b.resize(n), v.stdErr.assign(n, 0.0);
   if (o.cloth) v.cloth.resize(n);
-  auto work = [&](size_t begin, size_t step) {
-    for (size_t i = begin; i < n; i += step) {
-      const Point3 p = referencePoint(o, points[i].mu, points[i].roughness, nodes);
-      v.a[i] = p.a, v.b[i] = p.b;
-      if (o.cloth) v.cloth[i] = p.c;
-    }
-  };
-  const unsigned threads = std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
-  if (n < 64 || threads == 1) {
-    work(0, 1);
-  } else {
-    std::vector<std::thread> pool;
-    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t, threads);
-    for (auto& t : pool) t.join();
-  }
+  detail::parallelEach(n, kReferenceThreads, [&](size_t i) {
+    const Point3 p = referencePoint(o, points[i].mu, points[i].roughness, nodes);
+    v.a[i] = p.a, v.b[i] = p.b;
+    if (o.cloth) v.cloth[i] = p.c;
+  });
   return v;
 }
 

@@ -2,14 +2,14 @@
 #include "prtbake/prefilter.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <memory>
-#include <thread>
 
 #include "core/kernel_options.h"
+#include "core/parallel.h"
 #include "prefilter/prefilter_detail.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
 #include "prtbake/lut.h"
@@ -27,10 +27,6 @@ constexpr double kFirstBinTolerance = 2.0;
 constexpr int kMaxPasses = 4;
 // Babylon's α_G = r² + 0.0005 (pbrHelperFunctions: the smallest α its shaders use).
 constexpr double kBabylonAlphaOffset = 0.0005;
-
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 int maxLevelsFor(int base) {
   int levels = 1;
@@ -215,23 +211,13 @@ class CutRunner {
     // at 256² the cut is most of a level's time), then one launch per face.
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<detail::TileCuts> cuts(6);
-    {
-      std::atomic<int> next{0};
-      auto work = [&] {
-        for (int face; (face = next++) < 6;) {
-          const std::vector<int>& part = leaves[size_t(face)];
-          if (part.empty()) continue;
-          // Every leaf of the face: cut every tile (an empty list); a subset: only the tiles above it.
-          const bool whole = part.size() == allLeaves(tt).size();
-          cuts[size_t(face)] = detail::buildTileCuts(tree_, scale, tt, face, whole ? std::vector<int>{} : part);
-        }
-      };
-      const unsigned threads = std::min(6u, std::max(1u, std::thread::hardware_concurrency()));
-      std::vector<std::thread> pool;
-      for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
-      work();
-      for (std::thread& t : pool) t.join();
-    }
+    detail::parallelEach(6, 6, [&](size_t face) {
+      const std::vector<int>& part = leaves[face];
+      if (part.empty()) return;
+      // Every leaf of the face: cut every tile (an empty list); a subset: only the tiles above it.
+      const bool whole = part.size() == allLeaves(tt).size();
+      cuts[face] = detail::buildTileCuts(tree_, scale, tt, int(face), whole ? std::vector<int>{} : part);
+    });
     *cutSeconds += secondsSince(t0);
     const auto t1 = std::chrono::steady_clock::now();
     size_t summed = 0;

@@ -32,20 +32,22 @@
 // texel needs), which the kernel walks as rows of the bin array.
 
 #include <algorithm>
-#include <cstdlib>
-#include <new>
-#include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
-#include <thread>
+#include <new>
 
 #include "core/constants.h"
+#include "core/parallel.h"
 #include "prefilter/prefilter_detail.h"
 #include "prtbake/error.h"
 #include "prtbake/lut.h"
 
 namespace prtbake {
 namespace {
+
+// Host threads of the cut's walks (tiles and pieces of uneven cost, handed out one at a time).
+constexpr int kCutThreads = 8;
 
 const double kHalfPi = kPi / 2;
 
@@ -619,16 +621,10 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
           const uint32_t id = tt.id(k, face, ty, tx);
           if (geom[id].exists && wanted[id]) ids.push_back(id);
         }
-    const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), 8));
-    std::atomic<size_t> next{0};
-    auto work = [&] {
-      std::vector<BinRef> stack;
-      for (size_t i; (i = next++) < ids.size();) lowerBounds(tree, crit, geom[ids[i]], stack, &nLow[ids[i]], &dLow[ids[i]]);
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
+    detail::parallelEach(ids.size(), kCutThreads, [&](size_t i) {
+      thread_local std::vector<BinRef> stack;  // the walk's, kept from tile to tile
+      lowerBounds(tree, crit, geom[ids[i]], stack, &nLow[ids[i]], &dLow[ids[i]]);
+    });
     for (int k = kBound - 1; k >= 0; --k)
       for (int ty = 0; ty < tt.side(k); ++ty)
         for (int tx = 0; tx < tt.side(k); ++tx) {
@@ -722,17 +718,7 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
       pieces.push_back(std::move(piece));
     }
   std::vector<Out> outs(pieces.size());
-  {
-    const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), 8));
-    std::atomic<size_t> next{0};
-    auto work = [&] {
-      for (size_t i; (i = next++) < pieces.size();) run(pieces[i], outs[i]);
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
-  }
+  detail::parallelEach(pieces.size(), kCutThreads, [&](size_t i) { run(pieces[i], outs[i]); });
   // Counting sort of the pairs by tile id.
   TileCuts cuts;
   cuts.start.assign(tt.offset.back() + 1, 0);

@@ -1,16 +1,16 @@
 // Prefiltering pieces that read the source texel by texel: the r = 0 resampling, the
 // double-precision brute force (the definition itself) and the anchors' sampled estimator.
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <thread>
 
 #include "core/constants.h"
 #include "core/kernel_options.h"
-#include "prefilter/prefilter_detail.h"
+#include "core/parallel.h"
 #include "core/radical_inverse.h"
+#include "prefilter/prefilter_detail.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/runtime.h"
@@ -20,22 +20,9 @@ namespace {
 
 // Subsamples per side of an output texel when resampling: at most this many.
 constexpr int kMaxSupersample = 16;
-
-// Runs body(i) for i in [0, count) on the host's threads (at most 8), in contiguous blocks.
-template <class Body>
-void parallelFor(size_t count, Body&& body) {
-  const unsigned threads = std::max(1u, std::min<unsigned>(8, std::thread::hardware_concurrency()));
-  std::atomic<size_t> next{0};
-  constexpr size_t kBlock = 64;
-  auto work = [&] {
-    for (size_t b; (b = next.fetch_add(kBlock)) < count;)
-      for (size_t i = b; i < std::min(count, b + kBlock); ++i) body(i);
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-}
+// Host threads of the resampling loops, rows of 64 at a time.
+constexpr int kResampleThreads = 8;
+constexpr size_t kResampleBlock = 64;
 
 // The map's own direction of world direction w: yaw undone (a map direction d is seen at
 // Ry(yaw)·d); cs = (cos yaw, sin yaw).
@@ -125,7 +112,7 @@ std::vector<float> resampleEnvironment(const EnvMap& env, int n) {
   std::vector<float> out(size_t(6) * size_t(n) * size_t(n) * 3);
   const auto bases = standardCubeBases();
   const double yaw = env.yawDegrees * kPi / 180.0, cs[2] = {std::cos(yaw), std::sin(yaw)};
-  parallelFor(size_t(6) * size_t(n), [&](size_t fr) {
+  detail::parallelEach(size_t(6) * size_t(n), kResampleThreads, [&](size_t fr) {
     const int face = int(fr / size_t(n)), row = int(fr % size_t(n));
     const auto& b = bases[size_t(face)];
     for (int col = 0; col < n; ++col) {
@@ -158,7 +145,7 @@ std::vector<float> resampleEnvironment(const EnvMap& env, int n) {
         }
       for (int k = 0; k < 3; ++k) o[k] = float(acc[k] / weight);
     }
-  });
+  }, kResampleBlock);
   return out;
 }
 
@@ -175,7 +162,7 @@ std::vector<double> prefilterBruteForce(const EnvMap& env, PrefilterLobe lobe, d
   const size_t n = dirs.size() / 3;
   std::vector<double> out(3 * n);
   const double a2 = alpha * alpha;
-  parallelFor(n, [&](size_t i) {
+  detail::parallelEach(n, kResampleThreads, [&](size_t i) {
     const double* r = &dirs[3 * i];
     // Four interleaved partial sums per quantity (independent chains), added in a fixed order.
     double acc[4][4] = {};
@@ -195,7 +182,7 @@ std::vector<double> prefilterBruteForce(const EnvMap& env, PrefilterLobe lobe, d
     double s[4];
     for (int k = 0; k < 4; ++k) s[k] = (acc[0][k] + acc[1][k]) + (acc[2][k] + acc[3][k]);
     for (int c = 0; c < 3; ++c) out[3 * i + size_t(c)] = s[3] > 0 ? s[c] / s[3] : 0.0;
-  });
+  }, kResampleBlock);
   return out;
 }
 
@@ -292,7 +279,7 @@ std::vector<float> prefilterSampledLevel(Runtime& rt, const std::vector<std::vec
   const auto t0 = std::chrono::steady_clock::now();
   rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
   rt.queue().finish();
-  *kernelSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  *kernelSeconds = secondsSince(t0);
   std::vector<float> rgb(texels * 3);
   rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, rgb.size() * sizeof(float), rgb.data());
   return rgb;

@@ -2,35 +2,13 @@
 // frames, directions), brute force over every triangle, exact inclusive edges.
 #include <cmath>
 
+#include "geometry/ray_triangle.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"
 #include "transport/transport_setup.h"
 
 namespace prtbake {
-namespace {
-
-struct Hit {
-  double t, u, v;
-  bool ok;
-};
-
-// Möller–Trumbore in double, barycentrics accepted on the closed triangle.
-Hit intersect(const double* o, const double* d, const double* v0, const double* v1, const double* v2, double tMax) {
-  double e1[3], e2[3], s[3];
-  for (int c = 0; c < 3; ++c) e1[c] = v1[c] - v0[c], e2[c] = v2[c] - v0[c], s[c] = o[c] - v0[c];
-  const double p[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-  const double det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
-  if (det == 0) return {0, 0, 0, false};
-  const double inv = 1 / det;
-  const double u = (s[0] * p[0] + s[1] * p[1] + s[2] * p[2]) * inv;
-  const double q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
-  const double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv;
-  const double t = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
-  return {t, u, v, t > 0 && t < tMax && u >= 0 && v >= 0 && u + v <= 1};
-}
-
-}  // namespace
 
 TransportResult computeTransportReference(const Mesh& mesh, const TransportOptions& o, ReferenceRays* rays) {
   detail::checkTransportOptions(o);
@@ -77,7 +55,8 @@ TransportResult computeTransportReference(const Mesh& mesh, const TransportOptio
       double nearEdge = 1.0;
       if (visibility)
         for (size_t t = 0; t < nt; ++t) {
-          const Hit h = intersect(org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], setup.tMax);
+          const detail::TriangleHit h = detail::intersectTriangle(
+              org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], setup.tMax);
           if (h.t > 0 && h.t < setup.tMax && std::isfinite(h.u))
             nearEdge = std::min(nearEdge, std::abs(std::min({h.u, h.v, 1 - h.u - h.v})));
           if (h.ok) {
@@ -112,10 +91,11 @@ TransportResult computeTransportReference(const Mesh& mesh, const TransportOptio
         for (int s = 0; s < ns; ++s) {
           double org[3], dir[3];
           ray(v, s, org, dir);
-          Hit best{setup.tMax, 0, 0, false};
+          detail::TriangleHit best{setup.tMax, 0, 0, false};
           size_t bestTri = 0;
           for (size_t t = 0; t < nt; ++t) {
-            const Hit h = intersect(org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], best.t);
+            const detail::TriangleHit h = detail::intersectTriangle(
+              org, dir, &tri[9 * t], &tri[9 * t + 3], &tri[9 * t + 6], best.t);
             if (h.ok) best = h, bestTri = t;
           }
           if (!best.ok) continue;
