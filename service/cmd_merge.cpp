@@ -20,6 +20,7 @@
 #include "cli.h"
 #include "manifest.h"
 #include "prtbake/atomic_file.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 #include "prtbake/mesh.h"
@@ -205,7 +206,7 @@ int runMerge(const CommandLine& cl) {
           ++merged;
           reporter.status("[merged] " + job.label + " (" + std::to_string(n) + " shards, " +
                           std::to_string(jobs::manifestInt(info, "vertices", size_t(0))) + " vertices, " +
-                          formatSeconds(std::chrono::duration<double>(Clock::now() - tJob).count()) + ")");
+                          formatSeconds(secondsSince(tJob)) + ")");
           reporter.event({{"event", "job_end"}, {"id", job.label}, {"status", "merged"}});
         } catch (const std::exception& e) {
           fail(job, e.what());
@@ -231,7 +232,7 @@ int runMerge(const CommandLine& cl) {
         fail(job, reason);
       }
     }
-  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const double seconds = secondsSince(t0);
   reporter.status(std::to_string(merged + complete + failed) + " jobs: " + std::to_string(merged) + " merged, " +
                   std::to_string(complete) + " complete, " + std::to_string(failed) + " failed (" +
                   formatSeconds(seconds) + ")");

@@ -12,6 +12,7 @@
 #include "glossy/glossy_detail.h"
 #include "core/kernel_options.h"
 #include "prtbake/bvh.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
 #include "prtbake/sh.h"
@@ -20,7 +21,6 @@
 namespace prtbake {
 namespace {
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Work-items per group (one vertex each; the kernels loop, so PoCL runs them scalar
 // over work-items and 16 lanes wide inside each).
@@ -160,18 +160,266 @@ std::vector<float> glossyDirectionChunk(int samples, int first, int count, uint6
   return d;
 }
 
+namespace {
+
+// The glossy bake of one range of vertices, block by block: its set-up (the diffuse bounces
+// for interreflection, the scene, the direction chunks, the kernels) and, per block, the Gram
+// sums of the direct term, the bounce sums and the matrices (glossy.h).
+class GlossyBaker {
+ public:
+  GlossyBaker(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, GlossyStats& st)
+      : rt_(rt), mesh_(mesh), o_(o), st_(st), to_(detail::glossyTransportOptions(o)),
+        setup_(detail::makeRaySetup(mesh, to_, false)) {
+    no2_ = o.orderOut * o.orderOut, ni2_ = o.orderIn * o.orderIn;
+    const int nmax = std::max(o.orderOut, o.orderIn);
+    nmax2_ = nmax * nmax, gramCount_ = nmax2_ * (nmax2_ + 1) / 2, ch_ = st.channels;
+    visibility_ = o.mode != TransportMode::Unshadowed;
+    bounce_ = o.mode == TransportMode::Interreflected;
+    if (bounce_) diffuseBounces();
+    for (size_t v = o.firstVertex; v < o.firstVertex + st.vertexCount; ++v) {
+      const float* n = &setup_.frames[12 * v + 8];
+      st.verticesWithoutNormal += (n[0] == 0 && n[1] == 0 && n[2] == 0) ? 1 : 0;
+    }
+    uploadScene();
+    for (size_t v = o.firstVertex; v < o.firstVertex + st.vertexCount; ++v) st.verticesUnoccludable += unocc_[v];
+    directionChunks(nmax);
+    const std::string opts = detail::glossyOptions(o.orderOut, o.orderIn, visibility_);
+    gramK_ = rt.kernel("glossy.cl", "glossy_gram", opts);
+    noMask_ = rt.upload(std::vector<uint16_t>(8, 0));  // bound when no mask is kept
+    if (bounce_) {
+      bounceK_ = rt.kernel("glossy.cl", "glossy_bounce", opts);
+      std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
+      for (size_t t = 0; t < mesh.triangleCount(); ++t)
+        for (int c = 0; c < 3; ++c) idx[4 * t + c] = int32_t(mesh.indices[3 * t + c]);
+      indicesBuf_ = rt.upload(idx);
+      albedoBuf_ = rt.upload(detail::vertexAlbedo(mesh, to_));
+      diffuseBuf_ = rt.upload(diffuse_);
+    }
+  }
+
+  // Vertices per block: the double sums of one block within kBlockBytes.
+  size_t blockVertices() const {
+    const double perVertexBytes =
+        8.0 * (gramCount_ + (bounce_ ? double(ch_) * no2_ * ni2_ : 0.0)) + 4.0 * double(st_.valuesPerVertex());
+    return std::max<size_t>(16, std::min(o_.blockVertices, size_t(kBlockBytes / perVertexBytes)));
+  }
+
+  // The matrices of vertices [first, first + nb), handed to the sink; their standard errors
+  // summed into *errSum.
+  void bakeBlock(size_t first, size_t nb, const GlossyBlockSink& sink, double* errSum) {
+    std::vector<float> origins(nb * 4), frames(nb * 12);
+    for (size_t i = 0; i < nb; ++i) {
+      std::copy_n(&setup_.origins[4 * (first + i)], 4, &origins[4 * i]);
+      std::copy_n(&setup_.frames[12 * (first + i)], 12, &frames[12 * i]);
+      origins[4 * i + 3] = unocc_[first + i] ? 1.0f : 0.0f;
+    }
+    originsBuf_ = rt_.upload(origins), framesBuf_ = rt_.upload(frames);
+    size_t traced = 0;
+    for (size_t i = 0; i < nb; ++i) traced += unocc_[first + i] ? 0 : 1;
+    traceGram(nb, traced);
+    if (bounce_) traceBounce(nb);
+    assemble(nb, errSum);
+    sink(first, nb, values_.data());
+  }
+
+ private:
+  // Interreflection: the diffuse transport of the whole mesh at order n_in, summed over
+  // bounces 0..B−1 (the transport's bounce loop with its early stop).
+  void diffuseBounces() {
+    const auto t0 = Clock::now();
+    TransportOptions d = to_;
+    d.order = o_.orderIn;
+    d.mode = o_.bounces > 1 ? TransportMode::Interreflected : TransportMode::Shadowed;
+    d.bounces = std::max(1, o_.bounces - 1);
+    const TransportResult tr = computeTransport(rt_, mesh_, d);
+    diffuse_ = tr.coeffs;
+    diffuseChannels_ = tr.channels;
+    st_.bouncesUsed = (o_.bounces > 1 ? tr.bouncesUsed : 0) + 1;
+    st_.rays += tr.rays;
+    st_.diffuseSeconds = secondsSince(t0);
+  }
+
+  // The BVH (with visibility) and the vertices nothing can occlude.
+  void uploadScene() {
+    unocc_.assign(mesh_.vertexCount(), 0);
+    if (!visibility_) {
+      nodes_ = rt_.upload(std::vector<float>(8, 0.0f));
+      tris_ = rt_.upload(std::vector<float>(12, 0.0f));
+      return;
+    }
+    const Bvh bvh = buildBvh(mesh_);
+    st_.bvhNodes = bvh.nodes.size();
+    st_.degenerateTriangles = bvh.degenerateTriangles;
+    unocc_ = detail::unoccludableFromBvh(mesh_, bvh, setup_);
+    nodes_ = detail::uploadBvhNodes(rt_, bvh, true);
+    tris_ = detail::uploadBvhTriangles(rt_, bvh, true);
+  }
+
+  // The direction chunks, uploaded once and reused by every block: the product rule of order
+  // nmax without visibility, else the sample set in launches of kSampleChunk.
+  void directionChunks(int nmax) {
+    if (!visibility_) {
+      DirectionChunk c;
+      const std::vector<float> d = detail::productRuleDirections(nmax);
+      c.count = int(d.size() / 4);
+      c.soa = rt_.upload(soa4(d, c.padded));
+      chunks_.push_back(c);
+      return;
+    }
+    for (int first = 0; first < o_.samples; first += kSampleChunk) {
+      DirectionChunk c;
+      c.count = std::min(kSampleChunk, o_.samples - first);
+      c.soa = rt_.upload(soa4(glossyDirectionChunk(o_.samples, first, c.count, o_.seed), c.padded));
+      chunks_.push_back(c);
+    }
+    scale_ = 2 * kPi / o_.samples;
+  }
+
+  // The Gram sums of the block's direct term over every chunk. With a bounce to follow, the
+  // kernel keeps a bit per ray (blocked or not): the bounce traces the same rays, and only a
+  // blocked one can hit a surface; the other colour channels then read the first's hits (12
+  // bytes a blocked ray, at most detail::kKeptHitBytes).
+  void traceGram(size_t nb, size_t traced) {
+    const cl::NDRange global(roundUp(nb, kLocalSize)), local(kLocalSize);
+    gram_.assign(nb * gramCount_, 0.0);
+    cl::Buffer gramOut(rt_.context(), CL_MEM_WRITE_ONLY, nb * gramCount_ * 4);
+    part_.resize(nb * gramCount_);
+    keepMask_ = bounce_ && visibility_;
+    masks_.clear();
+    blockedRays_ = 0;
+    std::vector<uint64_t> hitStart(keepMask_ ? nb * chunks_.size() : 0);  // blocked rays per (vertex, chunk), then offsets
+    for (const DirectionChunk& c : chunks_) {
+      const int maskWords = keepMask_ ? c.padded / 16 : 0;
+      masks_.push_back(keepMask_ ? cl::Buffer(rt_.context(), CL_MEM_READ_WRITE, nb * size_t(maskWords) * 2) : noMask_);
+      int a = 0;
+      gramK_.setArg(a++, int(nb));
+      gramK_.setArg(a++, c.count);
+      gramK_.setArg(a++, originsBuf_);
+      gramK_.setArg(a++, framesBuf_);
+      gramK_.setArg(a++, c.soa);
+      gramK_.setArg(a++, nodes_);
+      gramK_.setArg(a++, tris_);
+      gramK_.setArg(a++, setup_.tMax);
+      gramK_.setArg(a++, gramOut);
+      gramK_.setArg(a++, c.padded);
+      gramK_.setArg(a++, masks_.back());
+      gramK_.setArg(a++, maskWords);
+      rt_.queue().enqueueNDRangeKernel(gramK_, cl::NullRange, global, local);
+      rt_.queue().enqueueReadBuffer(gramOut, CL_TRUE, 0, part_.size() * 4, part_.data());
+      if (keepMask_) {
+        std::vector<uint16_t> bits(nb * size_t(maskWords));
+        rt_.queue().enqueueReadBuffer(masks_.back(), CL_TRUE, 0, bits.size() * 2, bits.data());
+        for (size_t i = 0; i < nb; ++i)
+          for (int w = 0; w < maskWords; ++w)
+            hitStart[i * chunks_.size() + masks_.size() - 1] += std::bitset<16>(bits[i * maskWords + w]).count();
+      }
+      for (size_t i = 0; i < part_.size(); ++i) gram_[i] += part_[i];
+      if (visibility_) st_.rays += uint64_t(traced) * uint64_t(c.count);
+    }
+    for (uint64_t& h : hitStart) {
+      const uint64_t n = h;
+      h = blockedRays_;
+      blockedRays_ += n;
+    }
+    keepHits_ = keepMask_ && ch_ > 1 && blockedRays_ > 0 && double(blockedRays_) * 12 <= detail::kKeptHitBytes;
+    hits_ = keepHits_ ? cl::Buffer(rt_.context(), CL_MEM_READ_WRITE, blockedRays_ * 12) : noMask_;
+    hitStart_ =  // offsets below 44 million when the hits are kept: int
+        keepHits_ ? rt_.upload(std::vector<int32_t>(hitStart.begin(), hitStart.end())) : noMask_;
+  }
+
+  // The bounce sums of the block, per colour channel and chunk.
+  void traceBounce(size_t nb) {
+    const cl::NDRange global(roundUp(nb, kLocalSize)), local(kLocalSize);
+    const size_t nbc = size_t(no2_) * ni2_;
+    bounceSums_.assign(nb * ch_ * nbc, 0.0);
+    cl::Buffer bounceOut(rt_.context(), CL_MEM_WRITE_ONLY, nb * nbc * 4);
+    part_.resize(nb * nbc);
+    for (int c = 0; c < ch_; ++c)
+      for (size_t ci = 0; ci < chunks_.size(); ++ci) {
+        const DirectionChunk& dc = chunks_[ci];
+        int a = 0;
+        bounceK_.setArg(a++, int(nb));
+        bounceK_.setArg(a++, dc.count);
+        bounceK_.setArg(a++, originsBuf_);
+        bounceK_.setArg(a++, framesBuf_);
+        bounceK_.setArg(a++, dc.soa);
+        bounceK_.setArg(a++, nodes_);
+        bounceK_.setArg(a++, tris_);
+        bounceK_.setArg(a++, setup_.tMax);
+        bounceK_.setArg(a++, indicesBuf_);
+        bounceK_.setArg(a++, albedoBuf_);
+        bounceK_.setArg(a++, diffuseBuf_);
+        bounceK_.setArg(a++, diffuseChannels_);
+        bounceK_.setArg(a++, c);
+        bounceK_.setArg(a++, bounceOut);
+        bounceK_.setArg(a++, dc.padded);
+        bounceK_.setArg(a++, masks_[ci]);
+        bounceK_.setArg(a++, keepMask_ ? dc.padded / 16 : 0);
+        bounceK_.setArg(a++, hits_);
+        bounceK_.setArg(a++, hitStart_);
+        bounceK_.setArg(a++, int(chunks_.size()));
+        bounceK_.setArg(a++, int(ci));
+        bounceK_.setArg(a++, keepHits_ ? (c == 0 ? 1 : 2) : 0);
+        rt_.queue().enqueueNDRangeKernel(bounceK_, cl::NullRange, global, local);
+        rt_.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part_.size() * 4, part_.data());
+        for (size_t i = 0; i < nb; ++i)
+          for (size_t k = 0; k < nbc; ++k) bounceSums_[(i * ch_ + c) * nbc + k] += part_[i * nbc + k];
+      }
+    st_.rays += uint64_t(keepHits_ ? 1 : ch_) * blockedRays_;  // the bounce traces the blocked rays only
+  }
+
+  // The block's matrices from its sums, and the standard error of each direct term.
+  void assemble(size_t nb, double* errSum) {
+    const size_t perVertex = st_.valuesPerVertex();
+    values_.resize(nb * perVertex);
+    for (size_t i = 0; i < nb; ++i) {
+      for (int c = 0; c < ch_; ++c)
+        detail::assembleMatrix(&gram_[i * gramCount_], nmax2_,
+                               bounce_ ? &bounceSums_[(i * ch_ + c) * size_t(no2_) * ni2_] : nullptr, no2_, ni2_,
+                               scale_, &values_[i * perVertex + size_t(c) * no2_ * ni2_]);
+      if (visibility_) {
+        // Standard error of the direct term (glossy.h): v = 2 M_00.
+        double norm2 = 0;
+        for (int k = 0; k < no2_ * ni2_; ++k) norm2 += double(values_[i * perVertex + k]) * values_[i * perVertex + k];
+        const double vis = 2 * gram_[i * gramCount_] * scale_;
+        const double se = std::sqrt(std::max(0.0, vis * no2_ * ni2_ / 4.0 - norm2) / o_.samples);
+        st_.maxStdError = std::max(st_.maxStdError, se);
+        *errSum += se;
+      }
+    }
+  }
+
+  Runtime& rt_;
+  const Mesh& mesh_;
+  const GlossyOptions& o_;
+  GlossyStats& st_;
+  const TransportOptions to_;
+  const detail::RaySetup setup_;
+  int no2_ = 0, ni2_ = 0, nmax2_ = 0, gramCount_ = 0, ch_ = 1;
+  bool visibility_ = false, bounce_ = false;
+  std::vector<float> diffuse_;
+  int diffuseChannels_ = 1;
+  std::vector<uint8_t> unocc_;
+  cl::Buffer nodes_, tris_, noMask_, indicesBuf_, albedoBuf_, diffuseBuf_;
+  std::vector<DirectionChunk> chunks_;
+  double scale_ = 1.0;
+  cl::Kernel gramK_, bounceK_;
+  // The current block's buffers and sums.
+  cl::Buffer originsBuf_, framesBuf_, hits_, hitStart_;
+  std::vector<cl::Buffer> masks_;
+  bool keepMask_ = false, keepHits_ = false;
+  uint64_t blockedRays_ = 0;
+  std::vector<double> gram_, bounceSums_;
+  std::vector<float> part_, values_;
+};
+
+}  // namespace
+
 GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, const GlossyBlockSink& sink) {
   const auto tStart = Clock::now();
   checkGlossyOptions(o);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
-  const size_t nvAll = mesh.vertexCount();
-  if (o.firstVertex > nvAll)
-    throw UsageError("vertex range", "first vertex " + std::to_string(o.firstVertex) + " is beyond the mesh's " +
-                                         std::to_string(nvAll) + " vertices");
-  const size_t count = o.vertexCount ? *o.vertexCount : nvAll - o.firstVertex;
-  if (count > nvAll - o.firstVertex)
-    throw UsageError("vertex range", std::to_string(count) + " vertices from " + std::to_string(o.firstVertex) +
-                                         " run past the mesh's " + std::to_string(nvAll) + " vertices");
+  const size_t count = detail::vertexRangeSize(mesh, o.firstVertex, o.vertexCount);
   GlossyStats st;
   st.orderOut = o.orderOut;
   st.orderIn = o.orderIn;
@@ -181,214 +429,18 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
   st.samples = o.mode == TransportMode::Unshadowed ? 0 : o.samples;
   st.device = rt.deviceLabel();
   if (count == 0) {
-    st.totalSeconds = since(tStart);
+    st.totalSeconds = secondsSince(tStart);
     return st;
   }
-  const int no2 = o.orderOut * o.orderOut, ni2 = o.orderIn * o.orderIn, nmax = std::max(o.orderOut, o.orderIn);
-  const int nmax2 = nmax * nmax, gramCount = nmax2 * (nmax2 + 1) / 2, ch = st.channels;
-  const bool visibility = o.mode != TransportMode::Unshadowed;
-  const bool bounce = o.mode == TransportMode::Interreflected;
-  const TransportOptions to = detail::glossyTransportOptions(o);
-
-  // Interreflection: the diffuse transport of the whole mesh at order n_in, summed over
-  // bounces 0..B−1 (the existing bounce loop with its early stop).
-  std::vector<float> diffuse;
-  int diffuseChannels = 1;
-  if (bounce) {
-    const auto t0 = Clock::now();
-    TransportOptions d = to;
-    d.order = o.orderIn;
-    d.mode = o.bounces > 1 ? TransportMode::Interreflected : TransportMode::Shadowed;
-    d.bounces = std::max(1, o.bounces - 1);
-    const TransportResult tr = computeTransport(rt, mesh, d);
-    diffuse = tr.coeffs;
-    diffuseChannels = tr.channels;
-    st.bouncesUsed = (o.bounces > 1 ? tr.bouncesUsed : 0) + 1;
-    st.rays += tr.rays;
-    st.diffuseSeconds = since(t0);
-  }
-
-  const detail::RaySetup setup = detail::makeRaySetup(mesh, to, false);
-  for (size_t v = o.firstVertex; v < o.firstVertex + count; ++v) {
-    const float* n = &setup.frames[12 * v + 8];
-    st.verticesWithoutNormal += (n[0] == 0 && n[1] == 0 && n[2] == 0) ? 1 : 0;
-  }
-  cl::Buffer nodes, tris;
-  std::vector<uint8_t> unocc(nvAll, 0);
-  if (visibility) {
-    const Bvh bvh = buildBvh(mesh);
-    st.bvhNodes = bvh.nodes.size();
-    st.degenerateTriangles = bvh.degenerateTriangles;
-    unocc = detail::unoccludableFromBvh(mesh, bvh, setup);
-    nodes = detail::uploadBvhNodes(rt, bvh, true);
-    tris = detail::uploadBvhTriangles(rt, bvh, true);
-  } else {
-    nodes = rt.upload(std::vector<float>(8, 0.0f));
-    tris = rt.upload(std::vector<float>(12, 0.0f));
-  }
-  for (size_t v = o.firstVertex; v < o.firstVertex + count; ++v) st.verticesUnoccludable += unocc[v];
-
-  // The direction chunks (uploaded once, reused by every block).
-  std::vector<DirectionChunk> chunks;
-  double scale = 1.0;
-  if (!visibility) {
-    DirectionChunk c;
-    const std::vector<float> d = detail::productRuleDirections(nmax);
-    c.count = int(d.size() / 4);
-    c.soa = rt.upload(soa4(d, c.padded));
-    chunks.push_back(c);
-  } else {
-    for (int first = 0; first < o.samples; first += kSampleChunk) {
-      DirectionChunk c;
-      c.count = std::min(kSampleChunk, o.samples - first);
-      c.soa = rt.upload(soa4(glossyDirectionChunk(o.samples, first, c.count, o.seed), c.padded));
-      chunks.push_back(c);
-    }
-    scale = 2 * kPi / o.samples;
-  }
-
-  const std::string opts = detail::glossyOptions(o.orderOut, o.orderIn, visibility);
-  cl::Kernel gramK = rt.kernel("glossy.cl", "glossy_gram", opts);
-  const cl::Buffer noMask = rt.upload(std::vector<uint16_t>(8, 0));  // bound when no mask is kept
-  cl::Kernel bounceK;
-  cl::Buffer indicesBuf, albedoBuf, diffuseBuf;
-  if (bounce) {
-    bounceK = rt.kernel("glossy.cl", "glossy_bounce", opts);
-    std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
-    for (size_t t = 0; t < mesh.triangleCount(); ++t)
-      for (int c = 0; c < 3; ++c) idx[4 * t + c] = int32_t(mesh.indices[3 * t + c]);
-    indicesBuf = rt.upload(idx);
-    albedoBuf = rt.upload(detail::vertexAlbedo(mesh, to));
-    diffuseBuf = rt.upload(diffuse);
-  }
-
-  const size_t perVertex = st.valuesPerVertex();
-  const double perVertexBytes = 8.0 * (gramCount + (bounce ? double(ch) * no2 * ni2 : 0.0)) + 4.0 * double(perVertex);
-  const size_t block = std::max<size_t>(16, std::min(o.blockVertices, size_t(kBlockBytes / perVertexBytes)));
-  std::vector<double> gram, bounceSums;
-  std::vector<float> part, values;
+  GlossyBaker baker(rt, mesh, o, st);
+  const size_t block = baker.blockVertices();
   double errSum = 0;
   const auto tKernel = Clock::now();
-  for (size_t b0 = 0; b0 < count; b0 += block) {
-    const size_t nb = std::min(block, count - b0), first = o.firstVertex + b0;
-    std::vector<float> origins(nb * 4), frames(nb * 12);
-    for (size_t i = 0; i < nb; ++i) {
-      std::copy_n(&setup.origins[4 * (first + i)], 4, &origins[4 * i]);
-      std::copy_n(&setup.frames[12 * (first + i)], 12, &frames[12 * i]);
-      origins[4 * i + 3] = unocc[first + i] ? 1.0f : 0.0f;
-    }
-    const cl::Buffer originsBuf = rt.upload(origins), framesBuf = rt.upload(frames);
-    size_t traced = 0;
-    for (size_t i = 0; i < nb; ++i) traced += unocc[first + i] ? 0 : 1;
-    const cl::NDRange global(roundUp(nb, kLocalSize)), local(kLocalSize);
-
-    gram.assign(nb * gramCount, 0.0);
-    cl::Buffer gramOut(rt.context(), CL_MEM_WRITE_ONLY, nb * gramCount * 4);
-    part.resize(nb * gramCount);
-    // With a bounce to follow, the direct kernel keeps a bit per ray: blocked or not. The
-    // bounce traces the same rays, and only a blocked one can hit a surface.
-    const bool keepMask = bounce && visibility;
-    std::vector<cl::Buffer> masks;
-    uint64_t blockedRays = 0;
-    std::vector<uint64_t> hitStart(keepMask ? nb * chunks.size() : 0);  // blocked rays per (vertex, chunk), then their offsets
-    for (const DirectionChunk& c : chunks) {
-      const int maskWords = keepMask ? c.padded / 16 : 0;
-      masks.push_back(keepMask ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, nb * size_t(maskWords) * 2) : noMask);
-      int a = 0;
-      gramK.setArg(a++, int(nb));
-      gramK.setArg(a++, c.count);
-      gramK.setArg(a++, originsBuf);
-      gramK.setArg(a++, framesBuf);
-      gramK.setArg(a++, c.soa);
-      gramK.setArg(a++, nodes);
-      gramK.setArg(a++, tris);
-      gramK.setArg(a++, setup.tMax);
-      gramK.setArg(a++, gramOut);
-      gramK.setArg(a++, c.padded);
-      gramK.setArg(a++, masks.back());
-      gramK.setArg(a++, maskWords);
-      rt.queue().enqueueNDRangeKernel(gramK, cl::NullRange, global, local);
-      rt.queue().enqueueReadBuffer(gramOut, CL_TRUE, 0, part.size() * 4, part.data());
-      if (keepMask) {
-        std::vector<uint16_t> bits(nb * size_t(maskWords));
-        rt.queue().enqueueReadBuffer(masks.back(), CL_TRUE, 0, bits.size() * 2, bits.data());
-        for (size_t i = 0; i < nb; ++i)
-          for (int w = 0; w < maskWords; ++w)
-            hitStart[i * chunks.size() + masks.size() - 1] += std::bitset<16>(bits[i * maskWords + w]).count();
-      }
-      for (size_t i = 0; i < part.size(); ++i) gram[i] += part[i];
-      if (visibility) st.rays += uint64_t(traced) * uint64_t(c.count);
-    }
-    // The other colour channels trace the same rays: the first keeps their hits (12 bytes
-    // a blocked ray, at most detail::kKeptHitBytes) and the others read them.
-    for (uint64_t& h : hitStart) {
-      const uint64_t n = h;
-      h = blockedRays;
-      blockedRays += n;
-    }
-    const bool keepHits = keepMask && ch > 1 && blockedRays > 0 && double(blockedRays) * 12 <= detail::kKeptHitBytes;
-    const cl::Buffer hits = keepHits ? cl::Buffer(rt.context(), CL_MEM_READ_WRITE, blockedRays * 12) : noMask;
-    const cl::Buffer hitStartBuf =  // offsets below 44 million when the hits are kept: int
-        keepHits ? rt.upload(std::vector<int32_t>(hitStart.begin(), hitStart.end())) : noMask;
-    if (bounce) {
-      const size_t nbc = size_t(no2) * ni2;
-      bounceSums.assign(nb * ch * nbc, 0.0);
-      cl::Buffer bounceOut(rt.context(), CL_MEM_WRITE_ONLY, nb * nbc * 4);
-      part.resize(nb * nbc);
-      for (int c = 0; c < ch; ++c)
-        for (size_t ci = 0; ci < chunks.size(); ++ci) {
-          const DirectionChunk& dc = chunks[ci];
-          int a = 0;
-          bounceK.setArg(a++, int(nb));
-          bounceK.setArg(a++, dc.count);
-          bounceK.setArg(a++, originsBuf);
-          bounceK.setArg(a++, framesBuf);
-          bounceK.setArg(a++, dc.soa);
-          bounceK.setArg(a++, nodes);
-          bounceK.setArg(a++, tris);
-          bounceK.setArg(a++, setup.tMax);
-          bounceK.setArg(a++, indicesBuf);
-          bounceK.setArg(a++, albedoBuf);
-          bounceK.setArg(a++, diffuseBuf);
-          bounceK.setArg(a++, diffuseChannels);
-          bounceK.setArg(a++, c);
-          bounceK.setArg(a++, bounceOut);
-          bounceK.setArg(a++, dc.padded);
-          bounceK.setArg(a++, masks[ci]);
-          bounceK.setArg(a++, keepMask ? dc.padded / 16 : 0);
-          bounceK.setArg(a++, hits);
-          bounceK.setArg(a++, hitStartBuf);
-          bounceK.setArg(a++, int(chunks.size()));
-          bounceK.setArg(a++, int(ci));
-          bounceK.setArg(a++, keepHits ? (c == 0 ? 1 : 2) : 0);
-          rt.queue().enqueueNDRangeKernel(bounceK, cl::NullRange, global, local);
-          rt.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part.size() * 4, part.data());
-          for (size_t i = 0; i < nb; ++i)
-            for (size_t k = 0; k < nbc; ++k) bounceSums[(i * ch + c) * nbc + k] += part[i * nbc + k];
-        }
-      st.rays += uint64_t(keepHits ? 1 : ch) * blockedRays;  // the bounce traces the blocked rays only
-    }
-    values.resize(nb * perVertex);
-    for (size_t i = 0; i < nb; ++i) {
-      for (int c = 0; c < ch; ++c)
-        detail::assembleMatrix(&gram[i * gramCount], nmax2,
-                               bounce ? &bounceSums[(i * ch + c) * size_t(no2) * ni2] : nullptr, no2, ni2, scale,
-                               &values[i * perVertex + size_t(c) * no2 * ni2]);
-      if (visibility) {
-        // Standard error of the direct term (glossy.h): v = 2 M_00.
-        double norm2 = 0;
-        for (int k = 0; k < no2 * ni2; ++k) norm2 += double(values[i * perVertex + k]) * values[i * perVertex + k];
-        const double vis = 2 * gram[i * gramCount] * scale;
-        const double se = std::sqrt(std::max(0.0, vis * no2 * ni2 / 4.0 - norm2) / o.samples);
-        st.maxStdError = std::max(st.maxStdError, se);
-        errSum += se;
-      }
-    }
-    sink(first, nb, values.data());
-  }
+  for (size_t b0 = 0; b0 < count; b0 += block)
+    baker.bakeBlock(o.firstVertex + b0, std::min(block, count - b0), sink, &errSum);
   st.meanStdError = errSum / double(count);
-  st.kernelSeconds = since(tKernel);
-  st.totalSeconds = since(tStart);
+  st.kernelSeconds = secondsSince(tKernel);
+  st.totalSeconds = secondsSince(tStart);
   return st;
 }
 

@@ -1,25 +1,16 @@
 // The glossy mesh preview: per-vertex transferred radiance for the rotated lighting, then
 // the view-dependent lobe per pixel on the device (kernels/glossy_preview.cl).
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 
-#include "core/constants.h"
 #include "core/kernel_options.h"
 #include "preview/preview_camera.h"
-#include "prtbake/bvh.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
 #include "prtbake/sh.h"
 #include "prtbake/sh_rotate.h"
 
 namespace prtbake {
-namespace {
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-constexpr size_t kLocalSize = 64;
-}  // namespace
 
 std::string detail::glossyPreviewOptions(int orderOut, int lightOrder, bool shBackground) {
   return "-DOUT_ORDER=" + std::to_string(orderOut) + " -DBG_ORDER=" + std::to_string(lightOrder) +
@@ -29,14 +20,7 @@ std::string detail::glossyPreviewOptions(int orderOut, int lightOrder, bool shBa
 MeshPreviewResult renderGlossyPreview(Runtime& rt, const Mesh& mesh, const GlossyMatrices& g, const CpcaResult* cpca,
                                       const ShCoeffs& radiance, const GlossyLobe& lobe, const GlossyPreviewOptions& go) {
   const MeshPreviewOptions& o = go.view;
-  if (o.width < 8 || o.height < 8 || o.width > 16384 || o.height > 16384)
-    throw UsageError("--size", "image size must be in [8, 16384] x [8, 16384]");
-  if (!std::isfinite(o.yawDeg) || !std::isfinite(o.pitchDeg) || !std::isfinite(o.lightRotationDeg))
-    throw UsageError("--view", "angles must be finite");
-  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
-  if (radiance.quantity != ShQuantity::Radiance)
-    throw InputError("environment", std::string("the mesh preview needs radiance coefficients, not ") +
-                                        toString(radiance.quantity));
+  detail::checkMeshPreview(mesh, radiance, o);
   const int no = g.orderOut, ni = g.orderIn, ch = g.channels, no2 = no * no, ni2 = ni * ni;
   const size_t nv = mesh.vertexCount(), dim = size_t(ch) * no2 * ni2;
   if (cpca) {
@@ -49,15 +33,7 @@ MeshPreviewResult renderGlossyPreview(Runtime& rt, const Mesh& mesh, const Gloss
   }
   // The lighting, rotated as the diffuse preview does, cut or zero-padded to n_in.
   Rotation rot;
-  ShCoeffs light = radiance;
-  if (o.lightRotationDeg != 0) {
-    const double len = std::sqrt(o.lightAxis[0] * o.lightAxis[0] + o.lightAxis[1] * o.lightAxis[1] +
-                                 o.lightAxis[2] * o.lightAxis[2]);
-    if (!(len > 1e-12) || !std::isfinite(len)) throw UsageError("light axis", "must be a non-zero finite vector");
-    const double a = o.lightRotationDeg * kPi / 180, s = std::sin(0.5 * a) / len;
-    rot = rotationFromQuaternion(std::cos(0.5 * a), o.lightAxis[0] * s, o.lightAxis[1] * s, o.lightAxis[2] * s);
-    light = applyShRotation(radiance, shRotationExact(rot, radiance.order));
-  }
+  const ShCoeffs light = detail::rotatedLighting(radiance, o, &rot);
   const int nb = light.order * light.order;
   std::vector<double> l(size_t(3) * ni2, 0.0);
   for (int c = 0; c < 3; ++c)
@@ -115,62 +91,22 @@ MeshPreviewResult renderGlossyPreview(Runtime& rt, const Mesh& mesh, const Gloss
   for (int ll = 0; ll < std::min(no, int(lobe.g.size())); ++ll) lobeG[size_t(ll)] = float(lobe.g[size_t(ll)]);
 
   MeshPreviewResult r;
-  r.triangles = mesh.triangleCount();
-  const auto tBvh = Clock::now();
-  const Bvh bvh = buildBvh(mesh);
-  r.bvhSeconds = since(tBvh);
-  std::vector<Bvh::Node> nodes = bvh.nodes;
-  std::vector<float> packed = bvh.packed;
-  if (nodes.empty()) {
-    nodes = {Bvh::Node{{1, 1, 1}, 0, {-1, -1, -1}, 1}};
-    packed.assign(12, 0.0f);
-  }
-  std::vector<int32_t> idx(mesh.triangleCount() * 4, 0);
-  for (size_t k = 0; k < mesh.triangleCount(); ++k)
-    for (int j = 0; j < 3; ++j) idx[4 * k + j] = int32_t(mesh.indices[3 * k + j]);
-  std::vector<float> albedo(nv * 4, 0.0f);
-  for (size_t v = 0; v < nv; ++v)
-    for (int c = 0; c < 3; ++c) albedo[4 * v + c] = mesh.albedo[3 * v + c];
-  const detail::Camera cam = detail::frameCamera(mesh, o);
-  std::vector<float> camBuf(16, 0.0f);
-  for (int k = 0; k < 3; ++k) {
-    camBuf[k] = float(cam.eye[k]);
-    camBuf[4 + k] = float(cam.forward[k]);
-    camBuf[8 + k] = float(cam.right[k]);
-    camBuf[12 + k] = float(cam.up[k]);
-  }
-  camBuf[3] = float(cam.radius);
-  char desc[256];
-  std::snprintf(desc, sizeof desc, "eye (%.4g, %.4g, %.4g), looking at (%.4g, %.4g, %.4g), vertical fov %.1f deg",
-                cam.eye[0], cam.eye[1], cam.eye[2], cam.centre[0], cam.centre[1], cam.centre[2], cam.vfovDeg);
-  r.camera = desc;
+  detail::PreviewScene scene = detail::uploadPreviewScene(rt, mesh, o, r);
   const bool shBackground = o.background == nullptr;
   cl::Kernel k = rt.kernel("glossy_preview.cl", "preview_glossy",
                            detail::glossyPreviewOptions(no, light.order, shBackground));
-  const int pixels = o.width * o.height;
-  cl::Buffer camDev = rt.upload(camBuf), nodesDev = rt.upload(nodes), trisDev = rt.upload(packed),
-             idxDev = rt.upload(idx), albedoDev = rt.upload(albedo), normalsDev = rt.upload(normals),
-             tDev = rt.upload(t), hemiDev = rt.upload(hemi), lobeDev = rt.upload(lobeG), bgDev = rt.upload(bg);
-  cl::Buffer rgbDev(rt.context(), CL_MEM_WRITE_ONLY, size_t(pixels) * 12);
-  cl::Buffer hitDev(rt.context(), CL_MEM_WRITE_ONLY, size_t(pixels) * 4);
+  cl::Buffer normalsDev = rt.upload(normals), tDev = rt.upload(t), hemiDev = rt.upload(hemi),
+             lobeDev = rt.upload(lobeG), bgDev = rt.upload(bg);
   int a = 0;
   k.setArg(a++, o.width);
   k.setArg(a++, o.height);
-  for (cl::Buffer* b : {&camDev, &nodesDev, &trisDev, &idxDev, &albedoDev, &normalsDev, &tDev, &hemiDev, &lobeDev})
+  for (cl::Buffer* b : {&scene.camera, &scene.nodes, &scene.tris, &scene.indices, &scene.albedo, &normalsDev, &tDev,
+                        &hemiDev, &lobeDev})
     k.setArg(a++, *b);
   k.setArg(a++, go.normalised ? 1 : 0);
-  for (cl::Buffer* b : {&bgDev, &rgbDev, &hitDev}) k.setArg(a++, *b);
-  const auto tKernel = Clock::now();
-  const size_t global = (size_t(pixels) + kLocalSize - 1) / kLocalSize * kLocalSize;
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(kLocalSize));
-  r.image.width = o.width;
-  r.image.height = o.height;
-  r.image.rgb.resize(size_t(pixels) * 3);
-  r.hitTriangle.resize(size_t(pixels));
-  rt.queue().enqueueReadBuffer(rgbDev, CL_TRUE, 0, r.image.rgb.size() * 4, r.image.rgb.data());
-  rt.queue().enqueueReadBuffer(hitDev, CL_TRUE, 0, r.hitTriangle.size() * 4, r.hitTriangle.data());
-  r.kernelSeconds = since(tKernel);
-  if (!shBackground) detail::fillBackground(r, cam, rot, *o.background);
+  k.setArg(a++, bgDev);
+  detail::runPreviewKernel(rt, k, a, o, r);
+  if (!shBackground) detail::fillBackground(r, scene.cam, rot, *o.background);
   return r;
 }
 

@@ -8,6 +8,7 @@
 #include "core/constants.h"
 #include "core/kernel_options.h"
 #include "prtbake/bvh.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/preview.h"
 #include "prtbake/sh_rotate.h"
@@ -16,7 +17,6 @@
 namespace prtbake {
 namespace {
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr double kVerticalFovDeg = 35.0;  // of a landscape image (the narrower axis of a portrait one)
 constexpr double kFill = 0.9;             // the bounds' corners stay inside 90% of the frame
@@ -76,8 +76,7 @@ std::string detail::previewMeshOptions(int order, int channels, int lightOrder, 
          " -DBG_ORDER=" + std::to_string(lightOrder) + " -DSH_BACKGROUND=" + (shBackground ? "1" : "0");
 }
 
-MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const TransportCoeffs& t, const ShCoeffs& radiance,
-                                    const MeshPreviewOptions& o) {
+void detail::checkMeshPreview(const Mesh& mesh, const ShCoeffs& radiance, const MeshPreviewOptions& o) {
   if (o.width < 8 || o.height < 8 || o.width > 16384 || o.height > 16384)
     throw UsageError("--size", "image size must be in [8, 16384] x [8, 16384]");
   if (!std::isfinite(o.yawDeg) || !std::isfinite(o.pitchDeg) || !std::isfinite(o.lightRotationDeg))
@@ -86,38 +85,25 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   if (radiance.quantity != ShQuantity::Radiance)
     throw InputError("environment", std::string("the mesh preview needs radiance coefficients, not ") +
                                         toString(radiance.quantity));
-  if (radiance.order < 1 || radiance.rgb.size() != size_t(radiance.order) * size_t(radiance.order))
-    throw InputError("environment", "malformed SH coefficients");
-  if (t.channels != 1 && t.channels != 3) throw InputError("transport", "channels must be 1 or 3");
-  if (t.order < 1 || t.coeffs.size() != t.vertexCount * size_t(t.channels) * size_t(t.order) * size_t(t.order))
-    throw InputError("transport", "coefficient count does not match its shape");
-  if (t.vertexCount != mesh.vertexCount())
-    throw InputError("transport", "has " + std::to_string(t.vertexCount) + " vertices but the mesh has " +
-                                      std::to_string(mesh.vertexCount()));
+}
 
-  // The lighting, rotated: L'(ω) = L(Rᵀω), c' = M c (sh_rotate.h).
-  Rotation rot;
-  ShCoeffs light = radiance;
-  if (o.lightRotationDeg != 0) {
-    const double len = std::sqrt(o.lightAxis[0] * o.lightAxis[0] + o.lightAxis[1] * o.lightAxis[1] +
-                                 o.lightAxis[2] * o.lightAxis[2]);
-    if (!(len > 1e-12) || !std::isfinite(len)) throw UsageError("light axis", "must be a non-zero finite vector");
-    const double a = o.lightRotationDeg * kPi / 180, s = std::sin(0.5 * a) / len;
-    rot = rotationFromQuaternion(std::cos(0.5 * a), o.lightAxis[0] * s, o.lightAxis[1] * s, o.lightAxis[2] * s);
-    light = applyShRotation(radiance, shRotationExact(rot, radiance.order));
-  }
-  const int nc = t.order * t.order, nb = light.order * light.order;
-  std::vector<float> shade(size_t(3) * nc, 0.0f), bg(size_t(3) * nb);
-  for (int c = 0; c < 3; ++c) {
-    for (int i = 0; i < std::min(nc, nb); ++i) shade[size_t(c) * nc + i] = float(light.rgb[size_t(i)][size_t(c)]);
-    for (int i = 0; i < nb; ++i) bg[size_t(c) * nb + i] = float(light.rgb[size_t(i)][size_t(c)]);
-  }
+ShCoeffs detail::rotatedLighting(const ShCoeffs& radiance, const MeshPreviewOptions& o, Rotation* rot) {
+  *rot = Rotation();
+  if (o.lightRotationDeg == 0) return radiance;
+  const double len = std::sqrt(o.lightAxis[0] * o.lightAxis[0] + o.lightAxis[1] * o.lightAxis[1] +
+                               o.lightAxis[2] * o.lightAxis[2]);
+  if (!(len > 1e-12) || !std::isfinite(len)) throw UsageError("light axis", "must be a non-zero finite vector");
+  const double a = o.lightRotationDeg * kPi / 180, s = std::sin(0.5 * a) / len;
+  *rot = rotationFromQuaternion(std::cos(0.5 * a), o.lightAxis[0] * s, o.lightAxis[1] * s, o.lightAxis[2] * s);
+  return applyShRotation(radiance, shRotationExact(*rot, radiance.order));
+}
 
-  MeshPreviewResult r;
+detail::PreviewScene detail::uploadPreviewScene(Runtime& rt, const Mesh& mesh, const MeshPreviewOptions& o,
+                                                MeshPreviewResult& r) {
   r.triangles = mesh.triangleCount();
   const auto tBvh = Clock::now();
   const Bvh bvh = buildBvh(mesh);
-  r.bvhSeconds = since(tBvh);
+  r.bvhSeconds = secondsSince(tBvh);
   std::vector<Bvh::Node> nodes = bvh.nodes;
   std::vector<float> packed = bvh.packed;
   if (nodes.empty()) {  // every triangle has zero area: one leaf with an empty box
@@ -131,34 +117,35 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   for (size_t v = 0; v < mesh.vertexCount(); ++v)
     for (int c = 0; c < 3; ++c) albedo[4 * v + c] = mesh.albedo[3 * v + c];
 
-  const detail::Camera cam = detail::frameCamera(mesh, o);
+  PreviewScene scene;
+  scene.cam = frameCamera(mesh, o);
+  const Camera& cam = scene.cam;
   std::vector<float> camBuf(16, 0.0f);
   for (int k = 0; k < 3; ++k) {
     camBuf[k] = float(cam.eye[k]);
-    camBuf[3] = float(cam.radius);
     camBuf[4 + k] = float(cam.forward[k]);
     camBuf[8 + k] = float(cam.right[k]);
     camBuf[12 + k] = float(cam.up[k]);
   }
+  camBuf[3] = float(cam.radius);
   char desc[256];
   std::snprintf(desc, sizeof desc, "eye (%.4g, %.4g, %.4g), looking at (%.4g, %.4g, %.4g), vertical fov %.1f deg",
                 cam.eye[0], cam.eye[1], cam.eye[2], cam.centre[0], cam.centre[1], cam.centre[2], cam.vfovDeg);
   r.camera = desc;
+  scene.camera = rt.upload(camBuf);
+  scene.nodes = rt.upload(nodes);
+  scene.tris = rt.upload(packed);
+  scene.indices = rt.upload(idx);
+  scene.albedo = rt.upload(albedo);
+  return scene;
+}
 
-  const bool shBackground = o.background == nullptr;
-  cl::Kernel k = rt.kernel("preview.cl", "preview_mesh",
-                           detail::previewMeshOptions(t.order, t.channels, light.order, shBackground));
+void detail::runPreviewKernel(Runtime& rt, cl::Kernel& k, int arg, const MeshPreviewOptions& o, MeshPreviewResult& r) {
   const int pixels = o.width * o.height;
-  cl::Buffer camDev = rt.upload(camBuf), nodesDev = rt.upload(nodes), trisDev = rt.upload(packed),
-             idxDev = rt.upload(idx), albedoDev = rt.upload(albedo), tDev = rt.upload(t.coeffs),
-             lightDev = rt.upload(shade), bgDev = rt.upload(bg);
   cl::Buffer rgbDev(rt.context(), CL_MEM_WRITE_ONLY, size_t(pixels) * 12);
   cl::Buffer hitDev(rt.context(), CL_MEM_WRITE_ONLY, size_t(pixels) * 4);
-  int a = 0;
-  k.setArg(a++, o.width);
-  k.setArg(a++, o.height);
-  for (cl::Buffer* b : {&camDev, &nodesDev, &trisDev, &idxDev, &albedoDev, &tDev, &lightDev, &bgDev, &rgbDev, &hitDev})
-    k.setArg(a++, *b);
+  k.setArg(arg, rgbDev);
+  k.setArg(arg + 1, hitDev);
   const auto tKernel = Clock::now();
   const size_t global = (size_t(pixels) + kLocalSize - 1) / kLocalSize * kLocalSize;
   rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(kLocalSize));
@@ -168,9 +155,42 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
   r.hitTriangle.resize(size_t(pixels));
   rt.queue().enqueueReadBuffer(rgbDev, CL_TRUE, 0, r.image.rgb.size() * 4, r.image.rgb.data());
   rt.queue().enqueueReadBuffer(hitDev, CL_TRUE, 0, r.hitTriangle.size() * 4, r.hitTriangle.data());
-  r.kernelSeconds = since(tKernel);
+  r.kernelSeconds = secondsSince(tKernel);
+}
 
-  if (!shBackground) detail::fillBackground(r, cam, rot, *o.background);
+MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const TransportCoeffs& t, const ShCoeffs& radiance,
+                                    const MeshPreviewOptions& o) {
+  detail::checkMeshPreview(mesh, radiance, o);
+  if (radiance.order < 1 || radiance.rgb.size() != size_t(radiance.order) * size_t(radiance.order))
+    throw InputError("environment", "malformed SH coefficients");
+  if (t.channels != 1 && t.channels != 3) throw InputError("transport", "channels must be 1 or 3");
+  if (t.order < 1 || t.coeffs.size() != t.vertexCount * size_t(t.channels) * size_t(t.order) * size_t(t.order))
+    throw InputError("transport", "coefficient count does not match its shape");
+  if (t.vertexCount != mesh.vertexCount())
+    throw InputError("transport", "has " + std::to_string(t.vertexCount) + " vertices but the mesh has " +
+                                      std::to_string(mesh.vertexCount()));
+  Rotation rot;
+  const ShCoeffs light = detail::rotatedLighting(radiance, o, &rot);
+  const int nc = t.order * t.order, nb = light.order * light.order;
+  std::vector<float> shade(size_t(3) * nc, 0.0f), bg(size_t(3) * nb);
+  for (int c = 0; c < 3; ++c) {
+    for (int i = 0; i < std::min(nc, nb); ++i) shade[size_t(c) * nc + i] = float(light.rgb[size_t(i)][size_t(c)]);
+    for (int i = 0; i < nb; ++i) bg[size_t(c) * nb + i] = float(light.rgb[size_t(i)][size_t(c)]);
+  }
+
+  MeshPreviewResult r;
+  detail::PreviewScene scene = detail::uploadPreviewScene(rt, mesh, o, r);
+  const bool shBackground = o.background == nullptr;
+  cl::Kernel k = rt.kernel("preview.cl", "preview_mesh",
+                           detail::previewMeshOptions(t.order, t.channels, light.order, shBackground));
+  cl::Buffer tDev = rt.upload(t.coeffs), lightDev = rt.upload(shade), bgDev = rt.upload(bg);
+  int a = 0;
+  k.setArg(a++, o.width);
+  k.setArg(a++, o.height);
+  for (cl::Buffer* b : {&scene.camera, &scene.nodes, &scene.tris, &scene.indices, &scene.albedo, &tDev, &lightDev, &bgDev})
+    k.setArg(a++, *b);
+  detail::runPreviewKernel(rt, k, a, o, r);
+  if (!shBackground) detail::fillBackground(r, scene.cam, rot, *o.background);
   return r;
 }
 
@@ -191,7 +211,7 @@ void detail::fillBackground(MeshPreviewResult& r, const Camera& cam, const Rotat
       const Rgb v = sampleEnvironment(background, dm);
       for (int c = 0; c < 3; ++c) r.image.rgb[3 * p + size_t(c)] = float(v[size_t(c)]);
     }
-  r.backgroundSeconds = since(tBg);
+  r.backgroundSeconds = secondsSince(tBg);
 }
 
 }  // namespace prtbake

@@ -11,6 +11,7 @@
 #include "core/constants.h"
 #include "core/kernel_options.h"
 #include "prtbake/bvh.h"
+#include "prtbake/clock.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 #include "core/tolerance_pilot.h"
@@ -19,7 +20,6 @@
 namespace prtbake {
 namespace {
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
 // scalar; 16 keeps the groups numerous enough to balance over the cores.
@@ -48,7 +48,7 @@ class Tracer {
     if (visibility) {
       const auto t0 = Clock::now();
       const Bvh bvh = buildBvh(mesh);
-      r.bvhSeconds = since(t0);
+      r.bvhSeconds = secondsSince(t0);
       r.bvhNodes = bvh.nodes.size();
       r.degenerateTriangles = bvh.degenerateTriangles;
       unoccludable_ = detail::unoccludableFromBvh(mesh, bvh, setup);
@@ -103,22 +103,7 @@ class Tracer {
       size_t traced = 0;
       for (uint32_t v : vertices) traced += unoccludable_[v] ? 0 : 1;
       if (visibility_) r.rays += uint64_t(traced) * uint64_t(samples);
-      blockedRays_ = 0;
-      for (uint32_t b : chunkBlocked) blockedRays_ += b;
-      hitsWritten_ = false;
-      if (keep && double(blockedRays_) * 12 <= detail::kKeptHitBytes) {
-        // Where each vertex's hits of each launch go: vertex-major, so that a vertex's hits
-        // lie together.
-        const size_t chunks = chunkBlocked.size() / size_t(nv);
-        std::vector<int32_t> start(size_t(nv) * chunks + 1, 0);
-        for (size_t i = 0; i < size_t(nv); ++i)
-          for (size_t c = 0; c < chunks; ++c)
-            start[i * chunks + c + 1] = start[i * chunks + c] + int32_t(chunkBlocked[c * size_t(nv) + i]);
-        hitStart_ = rt_.upload(start);
-        hitChunks_ = int(chunks);
-      } else {
-        hitChunks_ = 0;
-      }
+      planHits(chunkBlocked, size_t(nv), keep);
       r.totalSamples += uint64_t(nv) * uint64_t(samples);
     }
     for (double& x : sums) x /= samples;
@@ -136,13 +121,7 @@ class Tracer {
     const int nv = int(vertices.size()), stride = channels * nc_;
     std::vector<double> sums(size_t(nv) * stride, 0.0);
     if (nv > 0) {
-      if (!indices_()) {
-        std::vector<int32_t> idx(mesh_.triangleCount() * 4, 0);
-        for (size_t t = 0; t < mesh_.triangleCount(); ++t)
-          for (int c = 0; c < 3; ++c) idx[4 * t + c] = int32_t(mesh_.indices[3 * t + c]);
-        indices_ = rt_.upload(idx);
-        albedo_ = rt_.upload(detail::vertexAlbedo(mesh_, o_));
-      }
+      uploadSurface();
       uploadVertices(vertices);
       cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4);
       cl::Kernel k = kernel("transport_bounce", "transport_bounce_packet", channels);
@@ -160,22 +139,7 @@ class Tracer {
         for (size_t i = 0; i < sums.size(); ++i) sums[i] += part[i];
       };
       if (replay) {  // the hits of the first bounce, gathered again
-        cl::Kernel g = rt_.kernel("transport.cl", "transport_gather",
-                                  detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
-        g.setArg(0, nv);
-        g.setArg(1, hits_);
-        g.setArg(2, hitStart_);
-        g.setArg(3, hitChunks_);
-        g.setArg(5, indices_);
-        g.setArg(6, albedo_);
-        g.setArg(7, prev);
-        g.setArg(8, out);
-        for (int c = 0; c < hitChunks_; ++c) {
-          g.setArg(4, c);
-          rt_.queue().enqueueNDRangeKernel(g, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
-                                           cl::NDRange(kLocalSize));
-          collect(c, 0);
-        }
+        gatherHits(nv, channels, prev, out, collect);
       } else {
         forEachChunk(k, samples, nv, 12, reuse ? MaskUse::Read : MaskUse::None, [&](int chunk) {
           if (o_.packetWidth <= 0) return;
@@ -196,6 +160,55 @@ class Tracer {
   }
 
  private:
+  // With the masks kept: where each vertex's hits of each launch (chunkBlocked, chunk-major)
+  // go, vertex-major so that a vertex's hits lie together; none kept when they would take
+  // more than detail::kKeptHitBytes.
+  void planHits(const std::vector<uint32_t>& chunkBlocked, size_t nv, bool keep) {
+    blockedRays_ = 0;
+    for (uint32_t b : chunkBlocked) blockedRays_ += b;
+    hitsWritten_ = false;
+    hitChunks_ = 0;
+    if (!keep || double(blockedRays_) * 12 > detail::kKeptHitBytes) return;
+    const size_t chunks = chunkBlocked.size() / nv;
+    std::vector<int32_t> start(nv * chunks + 1, 0);
+    for (size_t i = 0; i < nv; ++i)
+      for (size_t c = 0; c < chunks; ++c)
+        start[i * chunks + c + 1] = start[i * chunks + c] + int32_t(chunkBlocked[c * nv + i]);
+    hitStart_ = rt_.upload(start);
+    hitChunks_ = int(chunks);
+  }
+
+  // The first bounce's recorded hits, each launch's gathered again under `prev`.
+  template <class Collect>
+  void gatherHits(int nv, int channels, const cl::Buffer& prev, const cl::Buffer& out, Collect&& collect) {
+    cl::Kernel g = rt_.kernel("transport.cl", "transport_gather",
+                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
+    g.setArg(0, nv);
+    g.setArg(1, hits_);
+    g.setArg(2, hitStart_);
+    g.setArg(3, hitChunks_);
+    g.setArg(5, indices_);
+    g.setArg(6, albedo_);
+    g.setArg(7, prev);
+    g.setArg(8, out);
+    for (int c = 0; c < hitChunks_; ++c) {
+      g.setArg(4, c);
+      rt_.queue().enqueueNDRangeKernel(g, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
+                                       cl::NDRange(kLocalSize));
+      collect(c, 0);
+    }
+  }
+
+  // The triangles' vertex indices and the vertices' albedo, uploaded once for the bounces.
+  void uploadSurface() {
+    if (indices_()) return;
+    std::vector<int32_t> idx(mesh_.triangleCount() * 4, 0);
+    for (size_t t = 0; t < mesh_.triangleCount(); ++t)
+      for (int c = 0; c < 3; ++c) idx[4 * t + c] = int32_t(mesh_.indices[3 * t + c]);
+    indices_ = rt_.upload(idx);
+    albedo_ = rt_.upload(detail::vertexAlbedo(mesh_, o_));
+  }
+
   cl::Kernel kernel(const char* scalarName, const char* packetName, int channels) {
     const bool packet = o_.packetWidth > 0;
     cl::Kernel k = rt_.kernel("transport.cl", packet ? packetName : scalarName,
@@ -274,15 +287,8 @@ class Tracer {
 // The size of the requested vertex range; throws UsageError when it leaves the mesh
 // or splits an interreflected job.
 size_t rangeSize(const Mesh& mesh, const TransportOptions& o) {
-  const size_t nv = mesh.vertexCount();
-  if (o.firstVertex > nv)
-    throw UsageError("vertex range", "first vertex " + std::to_string(o.firstVertex) + " is beyond the mesh's " +
-                                         std::to_string(nv) + " vertices");
-  const size_t count = o.vertexCount ? *o.vertexCount : nv - o.firstVertex;
-  if (count > nv - o.firstVertex)
-    throw UsageError("vertex range", std::to_string(count) + " vertices from " + std::to_string(o.firstVertex) +
-                                         " run past the mesh's " + std::to_string(nv) + " vertices");
-  if (o.mode == TransportMode::Interreflected && count != nv)
+  const size_t count = detail::vertexRangeSize(mesh, o.firstVertex, o.vertexCount);
+  if (o.mode == TransportMode::Interreflected && count != mesh.vertexCount())
     throw UsageError("vertex range", "interreflected transport needs every vertex (each bounce reads the "
                                      "previous bounce of the whole mesh); compute the whole mesh");
   return count;
@@ -315,6 +321,129 @@ int toleranceCount(const std::vector<uint32_t>& sampled, size_t stride, double t
   return rep.samples;
 }
 
+// The direct term under --tolerance: the closed form where nothing can be in the way (zero
+// for a vertex without a normal), the others at the count the pilot predicts. Returns the
+// vertices of the range that were sampled.
+std::vector<uint32_t> directWithTolerance(Tracer& tracer, const detail::RaySetup& setup, const Mesh& mesh,
+                                          const TransportOptions& o, bool visibility,
+                                          const std::vector<uint32_t>& range, std::vector<double>* direct,
+                                          std::vector<double>* visible, TransportResult& r) {
+  auto needsSamples = [&](uint32_t v) { return visibility && hasNormal(setup, v) && !tracer.unoccludable()[v]; };
+  const size_t nvAll = mesh.vertexCount(), count = range.size();
+  const int nc = o.order * o.order;
+  std::vector<uint32_t> sampledAll;
+  for (uint32_t v = 0; v < nvAll; ++v)
+    if (needsSamples(v)) sampledAll.push_back(v);
+  std::vector<uint32_t> sampled;
+  for (uint32_t v : range)
+    if (needsSamples(v)) sampled.push_back(v);
+  std::vector<double>& t0 = *direct;
+  std::vector<double>& vis = *visible;
+  t0.assign(count * nc, 0.0);
+  vis.assign(count, 1.0);
+  for (size_t i = 0; i < count; ++i)
+    if (hasNormal(setup, range[i]) && !needsSamples(range[i])) {
+      const float* n = &setup.frames[12 * size_t(range[i]) + 8];
+      const std::vector<double> c = clampedCosineProjected(o.order, n[0], n[1], n[2]);
+      std::copy(c.begin(), c.end(), t0.begin() + std::ptrdiff_t(i * nc));
+    }
+  const double share = o.mode == TransportMode::Interreflected ? o.tolerance / 2 : o.tolerance;
+  r.samples = 0;
+  if (!sampledAll.empty()) {
+    r.samples = toleranceCount(sampledAll, nc, share, o,
+                               [&](const std::vector<uint32_t>& vs, int n) { return tracer.direct(vs, n, nullptr, r); }, r);
+    std::vector<double> sVis;
+    const std::vector<double> s = tracer.direct(sampled, r.samples, &sVis, r);
+    for (size_t j = 0, i = 0; i < count; ++i)
+      if (j < sampled.size() && sampled[j] == range[i]) {
+        std::copy_n(s.begin() + std::ptrdiff_t(j * nc), nc, t0.begin() + std::ptrdiff_t(i * nc));
+        vis[i] = sVis[j++];
+      }
+  } else {
+    ToleranceReport rep;
+    rep.tolerance = share;
+    rep.strategy = "closed form";
+    rep.why = visibility ? "no vertex can be occluded: each takes the Funk-Hecke projection of its clamped cosine"
+                         : "unshadowed transport is the Funk-Hecke projection of the clamped cosine";
+    rep.items = nvAll;
+    r.tolerance.push_back(rep);
+  }
+  return sampled;
+}
+
+// The bounces over the whole mesh (range: every vertex): T^(k+1) from T^(k), until one adds
+// less than bounceTolerance; the sum into r.coeffs. sampled: under --tolerance, the vertices
+// that something can occlude (the others see no other surface: their bounces are zero).
+void interreflect(Runtime& rt, Tracer& tracer, const TransportOptions& o, const std::vector<uint32_t>& range,
+                  const std::vector<uint32_t>* sampled, const std::vector<double>& t0, TransportResult& r) {
+  const size_t nvAll = range.size();
+  const int nc = o.order * o.order, ch = r.channels, stride = ch * nc;
+  std::vector<float> prev(nvAll * stride);
+  for (size_t v = 0; v < nvAll; ++v)
+    for (int c = 0; c < ch; ++c)
+      for (int k = 0; k < nc; ++k) prev[v * stride + c * nc + k] = float(t0[v * nc + k]);
+  std::vector<double> total(prev.begin(), prev.end());
+  if (o.keepBounces) r.bounceCoeffs.push_back(prev);
+  cl::Buffer prevBuf(rt.context(), CL_MEM_READ_ONLY, prev.size() * 4);
+  for (int b = 1; b <= o.bounces; ++b) {
+    rt.queue().enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
+    auto evaluate = [&](const std::vector<uint32_t>& vs, int n) {
+      return tracer.bounce(vs, n, ch, prevBuf, b < o.bounces, r);
+    };
+    std::vector<double> next(prev.size(), 0.0);
+    if (!sampled) {
+      next = evaluate(range, o.samples);
+    } else if (!sampled->empty()) {
+      // Vertices nothing can occlude see no other surface: their bounces are zero.
+      const int n = toleranceCount(*sampled, size_t(stride), o.tolerance / std::pow(2.0, b + 1), o, evaluate, r);
+      const std::vector<double> s = evaluate(*sampled, n);
+      for (size_t j = 0; j < sampled->size(); ++j)
+        std::copy_n(s.begin() + std::ptrdiff_t(j * stride), stride,
+                    next.begin() + std::ptrdiff_t((*sampled)[j] * size_t(stride)));
+    }
+    double maxNorm = 0;
+    for (size_t v = 0; v < nvAll; ++v) {
+      double n2 = 0;
+      for (int k = 0; k < stride; ++k) {
+        const double x = next[v * stride + k];
+        n2 += x * x;
+        total[v * stride + k] += x;
+      }
+      maxNorm = std::max(maxNorm, std::sqrt(n2));
+    }
+    prev.assign(next.begin(), next.end());
+    r.bounceMaxNorm.push_back(maxNorm);
+    r.bouncesUsed = b;
+    if (o.keepBounces) r.bounceCoeffs.push_back(prev);
+    if (maxNorm < o.bounceTolerance) break;
+  }
+  r.coeffs.assign(total.begin(), total.end());
+}
+
+// The standard error of the direct term (see transport.h) of each vertex of the range that was
+// sampled (all, or those in `sampled`), with their maximum and mean, into r.
+void standardErrors(const std::vector<double>& t0, const std::vector<double>& vis, const std::vector<uint32_t>& range,
+                    const std::vector<uint32_t>* sampled, int order, size_t nvAll, TransportResult& r) {
+  const size_t count = range.size();
+  const int nc = order * order;
+  r.stdError.assign(count, 0.0f);
+  double sumErr = 0;
+  const int nSamples = std::max(r.samples, 1);
+  std::vector<char> isSampled(nvAll, sampled ? 0 : 1);
+  if (sampled)
+    for (uint32_t v : *sampled) isSampled[v] = 1;
+  for (size_t i = 0; i < count; ++i) {
+    if (!isSampled[range[i]]) continue;
+    double norm2 = 0;
+    for (int k = 0; k < nc; ++k) norm2 += t0[i * nc + k] * t0[i * nc + k];
+    const double se = std::sqrt(std::max(0.0, nc / (4 * kPi) * vis[i] - norm2) / nSamples);
+    r.stdError[i] = float(se);
+    r.maxStdError = std::max(r.maxStdError, se);
+    sumErr += se;
+  }
+  r.meanStdError = sumErr / double(count);
+}
+
 }  // namespace
 
 std::string detail::transportOptions(int order, bool visibility, int channels, int packetWidth) {
@@ -330,13 +459,12 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   r.order = o.order;
   r.samples = o.samples;
   r.device = rt.deviceLabel();
-  const int nc = o.order * o.order;
   const size_t first = o.firstVertex, count = rangeSize(mesh, o), nvAll = mesh.vertexCount();
   r.vertexCount = count;
   r.firstVertex = first;
   r.channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
   if (count == 0) {
-    r.totalSeconds = since(tStart);
+    r.totalSeconds = secondsSince(tStart);
     return r;
   }
   const bool visibility = o.mode != TransportMode::Unshadowed;
@@ -354,118 +482,24 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);
   for (uint32_t v : range) r.verticesUnoccludable += tracer.unoccludable()[v];
 
-  // The direct term T^(0) of the range, and the vertices that are sampled.
+  // The direct term T^(0) of the range; under --tolerance, the vertices that were sampled
+  // (null: every vertex).
   std::vector<double> t0, vis;
-  std::vector<uint32_t> sampled = range;  // every vertex, or those that need samples
-  const bool tolerance = o.tolerance > 0;
-  if (!tolerance) {
+  std::vector<uint32_t> sampledUnderTolerance;
+  const std::vector<uint32_t>* sampled = nullptr;
+  if (o.tolerance > 0) {
+    sampledUnderTolerance = directWithTolerance(tracer, setup, mesh, o, visibility, range, &t0, &vis, r);
+    sampled = &sampledUnderTolerance;
+  } else {
     t0 = tracer.direct(range, o.samples, &vis, r);
-  } else {
-    // Closed form where nothing can be in the way (zero for a vertex without a normal);
-    // the others from the predicted count.
-    auto needsSamples = [&](uint32_t v) { return visibility && hasNormal(setup, v) && !tracer.unoccludable()[v]; };
-    std::vector<uint32_t> sampledAll;
-    for (uint32_t v = 0; v < nvAll; ++v)
-      if (needsSamples(v)) sampledAll.push_back(v);
-    sampled.clear();
-    for (uint32_t v : range)
-      if (needsSamples(v)) sampled.push_back(v);
-    t0.assign(count * nc, 0.0);
-    vis.assign(count, 1.0);
-    for (size_t i = 0; i < count; ++i)
-      if (hasNormal(setup, range[i]) && !needsSamples(range[i])) {
-        const float* n = &setup.frames[12 * size_t(range[i]) + 8];
-        const std::vector<double> c = clampedCosineProjected(o.order, n[0], n[1], n[2]);
-        std::copy(c.begin(), c.end(), t0.begin() + std::ptrdiff_t(i * nc));
-      }
-    const double share = o.mode == TransportMode::Interreflected ? o.tolerance / 2 : o.tolerance;
-    r.samples = 0;
-    if (!sampledAll.empty()) {
-      r.samples = toleranceCount(sampledAll, nc, share, o,
-                                 [&](const std::vector<uint32_t>& vs, int n) { return tracer.direct(vs, n, nullptr, r); }, r);
-      std::vector<double> sVis;
-      const std::vector<double> s = tracer.direct(sampled, r.samples, &sVis, r);
-      for (size_t j = 0, i = 0; i < count; ++i)
-        if (j < sampled.size() && sampled[j] == range[i]) {
-          std::copy_n(s.begin() + std::ptrdiff_t(j * nc), nc, t0.begin() + std::ptrdiff_t(i * nc));
-          vis[i] = sVis[j++];
-        }
-    } else {
-      ToleranceReport rep;
-      rep.tolerance = share;
-      rep.strategy = "closed form";
-      rep.why = visibility ? "no vertex can be occluded: each takes the Funk-Hecke projection of its clamped cosine"
-                           : "unshadowed transport is the Funk-Hecke projection of the clamped cosine";
-      rep.items = nvAll;
-      r.tolerance.push_back(rep);
-    }
   }
-
-  // Standard error of the direct term (see transport.h), over the sampled vertices.
-  r.stdError.assign(count, 0.0f);
-  double sumErr = 0;
-  const int nSamples = std::max(r.samples, 1);
-  std::vector<char> isSampled(nvAll, tolerance ? 0 : 1);
-  for (uint32_t v : sampled) isSampled[v] = 1;
-  for (size_t i = 0; i < count; ++i) {
-    if (!isSampled[range[i]]) continue;
-    double norm2 = 0;
-    for (int k = 0; k < nc; ++k) norm2 += t0[i * nc + k] * t0[i * nc + k];
-    const double se = std::sqrt(std::max(0.0, nc / (4 * kPi) * vis[i] - norm2) / nSamples);
-    r.stdError[i] = float(se);
-    r.maxStdError = std::max(r.maxStdError, se);
-    sumErr += se;
-  }
-  r.meanStdError = sumErr / double(count);
-
-  if (o.mode != TransportMode::Interreflected) {
+  standardErrors(t0, vis, range, sampled, o.order, nvAll, r);
+  if (o.mode != TransportMode::Interreflected)
     r.coeffs.assign(t0.begin(), t0.end());
-  } else {
-    // Bounces over the whole mesh (count == nvAll): T^(k+1) from T^(k), until one adds
-    // less than bounceTolerance.
-    const int ch = r.channels, stride = ch * nc;
-    std::vector<float> prev(nvAll * stride);
-    for (size_t v = 0; v < nvAll; ++v)
-      for (int c = 0; c < ch; ++c)
-        for (int k = 0; k < nc; ++k) prev[v * stride + c * nc + k] = float(t0[v * nc + k]);
-    std::vector<double> total(prev.begin(), prev.end());
-    if (o.keepBounces) r.bounceCoeffs.push_back(prev);
-    cl::Buffer prevBuf(rt.context(), CL_MEM_READ_ONLY, prev.size() * 4);
-    for (int b = 1; b <= o.bounces; ++b) {
-      rt.queue().enqueueWriteBuffer(prevBuf, CL_TRUE, 0, prev.size() * 4, prev.data());
-      auto evaluate = [&](const std::vector<uint32_t>& vs, int n) {
-        return tracer.bounce(vs, n, ch, prevBuf, b < o.bounces, r);
-      };
-      std::vector<double> next(prev.size(), 0.0);
-      if (!tolerance) {
-        next = evaluate(range, o.samples);
-      } else if (!sampled.empty()) {
-        // Vertices nothing can occlude see no other surface: their bounces are zero.
-        const int n = toleranceCount(sampled, size_t(stride), o.tolerance / std::pow(2.0, b + 1), o, evaluate, r);
-        const std::vector<double> s = evaluate(sampled, n);
-        for (size_t j = 0; j < sampled.size(); ++j)
-          std::copy_n(s.begin() + std::ptrdiff_t(j * stride), stride, next.begin() + std::ptrdiff_t(sampled[j] * size_t(stride)));
-      }
-      double maxNorm = 0;
-      for (size_t v = 0; v < nvAll; ++v) {
-        double n2 = 0;
-        for (int k = 0; k < stride; ++k) {
-          const double x = next[v * stride + k];
-          n2 += x * x;
-          total[v * stride + k] += x;
-        }
-        maxNorm = std::max(maxNorm, std::sqrt(n2));
-      }
-      prev.assign(next.begin(), next.end());
-      r.bounceMaxNorm.push_back(maxNorm);
-      r.bouncesUsed = b;
-      if (o.keepBounces) r.bounceCoeffs.push_back(prev);
-      if (maxNorm < o.bounceTolerance) break;
-    }
-    r.coeffs.assign(total.begin(), total.end());
-  }
-  r.kernelSeconds = since(tKernel);
-  r.totalSeconds = since(tStart);
+  else
+    interreflect(rt, tracer, o, range, sampled, t0, r);
+  r.kernelSeconds = secondsSince(tKernel);
+  r.totalSeconds = secondsSince(tStart);
   return r;
 }
 

@@ -78,6 +78,18 @@ const char* transportSamplerName(TransportSampler sampler) {
   return "?";
 }
 
+size_t detail::vertexRangeSize(const Mesh& mesh, size_t first, const std::optional<size_t>& count) {
+  const size_t nv = mesh.vertexCount();
+  if (first > nv)
+    throw UsageError("vertex range", "first vertex " + std::to_string(first) + " is beyond the mesh's " +
+                                         std::to_string(nv) + " vertices");
+  const size_t n = count ? *count : nv - first;
+  if (n > nv - first)
+    throw UsageError("vertex range", std::to_string(n) + " vertices from " + std::to_string(first) +
+                                         " run past the mesh's " + std::to_string(nv) + " vertices");
+  return n;
+}
+
 TransportSampler parseTransportSampler(const std::string& name) {
   if (name == "hammersley") return TransportSampler::Hammersley;
   if (name == "stratified") return TransportSampler::Stratified;

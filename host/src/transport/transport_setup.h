@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "prtbake/bvh.h"
@@ -53,6 +54,9 @@ std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const
 // paddedCount floats, N rounded up to a multiple of 16 (padding lanes are zero).
 std::vector<float> packetDirections(const std::vector<float>& dirs, int& paddedCount);
 void checkTransportOptions(const TransportOptions& options);
+// The size of the vertex range [first, first + count) (count: the rest of the mesh when
+// unset); UsageError when it leaves the mesh.
+size_t vertexRangeSize(const Mesh& mesh, size_t first, const std::optional<size_t>& count);
 // Albedo per vertex (override applied), V × 4.
 std::vector<float> vertexAlbedo(const Mesh& mesh, const TransportOptions& options);
 bool transportIsRgb(const Mesh& mesh, const TransportOptions& options);
