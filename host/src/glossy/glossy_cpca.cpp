@@ -318,15 +318,10 @@ double cpcaBytes(double K, double P, double V, double D, int bits) {
   return 4 * (K * (P + 1) * D + V) + V * P * (bits / 8) + (bits == 8 ? 4 * (K * P + V) : 0);
 }
 
-CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, int iterations, int threads,
-                   int weightBits) {
-  const auto t0 = std::chrono::steady_clock::now();
-  K = std::max<size_t>(1, std::min(K, V));
-  Cpca c(data, V, D, threads);
-  Model m;
-  m.K = K, m.P = P, m.D = D;
-  m.rows.assign(K * (P + 1) * D, 0.0f);
-  // k-means++ seeding on at most 4096 vertices spread over the mesh, fixed generator.
+// k-means++ seeding of the K means on at most 4096 vertices spread over the mesh, with a
+// fixed generator.
+void seedMeans(const Cpca& c, Model& m, size_t V) {
+  const size_t K = m.K, D = m.D;
   std::vector<size_t> subset;
   const size_t ns = std::min<size_t>(V, 4096);
   for (size_t i = 0; i < ns; ++i) subset.push_back(i * V / ns);
@@ -357,15 +352,18 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   }
   // Bases start as coordinate-free directions: orthonormalised deterministic noise.
   for (size_t k = 0; k < K; ++k)
-    for (size_t p = 0; p < P; ++p) {
+    for (size_t p = 0; p < m.P; ++p) {
       float* b = m.basis(k, p);
       for (size_t d = 0; d < D; ++d) b[d] = float(double(splitmix64(k * 1000003 + p * 7919 + d) >> 11) * 0x1.0p-53 - 0.5);
-      (void)b;
     }
   for (size_t k = 0; k < K; ++k)
-    if (P) orthonormalise(m.basis(k, 0), P, D);
-  // First assignment by nearest mean (P = 0), then Lloyd iterations with P.
-  std::vector<int32_t> cluster(V, -1);
+    if (m.P) orthonormalise(m.basis(k, 0), m.P, D);
+}
+
+// The first assignment by nearest mean (P = 0), then Lloyd iterations with P until fewer than
+// 0.1 % of the vertices move, then a last fit; returns the iterations run.
+int lloyd(Cpca& c, Model& m, std::vector<int32_t>& cluster, size_t V, int iterations) {
+  const size_t K = m.K, D = m.D;
   {
     Model m0;
     m0.K = K, m0.P = 0, m0.D = D;
@@ -396,75 +394,65 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
     }
   }
   c.fit(m, cluster, 4);
-  // Weights and errors in double.
-  CpcaResult r;
-  r.clusters = int(K), r.vectors = int(P), r.vertexCount = V, r.dim = D, r.iterations = it;
-  r.means.resize(K * D);
-  r.basis.resize(K * P * D);
-  for (size_t k = 0; k < K; ++k) {
-    std::copy(m.mean(k), m.mean(k) + D, &r.means[k * D]);
-    for (size_t p = 0; p < P; ++p) std::copy(m.basis(k, p), m.basis(k, p) + D, &r.basis[(k * P + p) * D]);
+  return it;
+}
+
+// x_v − μ_k of vertex v in its cluster k, in double.
+void centred(const Cpca& c, const CpcaResult& r, size_t v, std::vector<double>& diff) {
+  const size_t D = r.dim, k = size_t(r.clusterOf[v]);
+  const float* x = c.row(v);
+  for (size_t d = 0; d < D; ++d) diff[d] = double(x[d]) - r.means[k * D + d];
+}
+
+// int8 weights: w_vp ≈ q_vp · c_kp · t_v, c_kp the RMS of weight p over cluster k's members,
+// t_v the vertex's largest |w_vp| / c_kp over 127. The per-vertex factor keeps the relative
+// error of weakly lit (small) matrices as small as that of the others; w becomes exactly what
+// a reader of the int8 array reconstructs.
+void quantiseWeights(CpcaResult& r) {
+  const size_t K = size_t(r.clusters), P = size_t(r.vectors), V = r.vertexCount;
+  const std::vector<int32_t>& cluster = r.clusterOf;
+  std::vector<double> sum2(K * P, 0.0);
+  std::vector<size_t> members(K, 0);
+  for (size_t v = 0; v < V; ++v) {
+    ++members[size_t(cluster[v])];
+    for (size_t p = 0; p < P; ++p) sum2[size_t(cluster[v]) * P + p] += double(r.weights[v * P + p]) * r.weights[v * P + p];
   }
-  r.clusterOf = cluster;
-  r.weights.assign(V * P, 0.0f);
+  r.weightScales.assign(K * P, 0.0f);
+  for (size_t k = 0; k < K; ++k)
+    for (size_t p = 0; p < P; ++p)
+      if (members[k]) r.weightScales[k * P + p] = float(std::sqrt(sum2[k * P + p] / double(members[k])));
+  r.vertexScales.assign(V, 0.0f);
+  for (size_t v = 0; v < V; ++v) {
+    const float* c = &r.weightScales[size_t(cluster[v]) * P];
+    float t = 0;
+    for (size_t p = 0; p < P; ++p)
+      if (c[p] > 0) t = std::max(t, std::fabs(r.weights[v * P + p]) / c[p]);
+    r.vertexScales[v] = t / 127.0f;
+  }
+  for (size_t v = 0; v < V; ++v)
+    for (size_t p = 0; p < P; ++p) {
+      const float step = cpcaInt8Step(r, v, p);
+      r.weights[v * P + p] = cpcaInt8Value(cpcaInt8Code(r.weights[v * P + p], step), step);
+    }
+}
+
+// Each vertex's relative error with the stored weights, as a shader reconstructs it, and the
+// totals (CpcaResult's error fields).
+void measureErrors(const Cpca& c, CpcaResult& r, int threads) {
+  const size_t V = r.vertexCount, D = r.dim, P = size_t(r.vectors);
   r.vertexError.assign(V, 0.0f);
-  parallelFor(V, threads, [&](size_t a, size_t b, int) {
-    std::vector<double> diff(D);
-    for (size_t v = a; v < b; ++v) {
-      const size_t k = size_t(cluster[v]);
-      const float* x = c.row(v);
-      for (size_t d = 0; d < D; ++d) diff[d] = double(x[d]) - r.means[k * D + d];
-      for (size_t p = 0; p < P; ++p) {
-        const float* bp = &r.basis[(k * P + p) * D];
-        double w = 0;
-        for (size_t d = 0; d < D; ++d) w += bp[d] * diff[d];
-        r.weights[v * P + p] = float(w);
-      }
-    }
-  });
-  r.weightBits = weightBits;
-  if (weightBits == 8) {
-    // w_vp ≈ q_vp · c_kp · t_v: c_kp the RMS of weight p over cluster k's members, t_v the
-    // vertex's largest |w_vp| / c_kp over 127. The per-vertex factor keeps the relative error
-    // of weakly lit (small) matrices as small as that of the others; w becomes exactly what a
-    // reader of the int8 array reconstructs.
-    std::vector<double> sum2(K * P, 0.0);
-    std::vector<size_t> members(K, 0);
-    for (size_t v = 0; v < V; ++v) {
-      ++members[size_t(cluster[v])];
-      for (size_t p = 0; p < P; ++p) sum2[size_t(cluster[v]) * P + p] += double(r.weights[v * P + p]) * r.weights[v * P + p];
-    }
-    r.weightScales.assign(K * P, 0.0f);
-    for (size_t k = 0; k < K; ++k)
-      for (size_t p = 0; p < P; ++p)
-        if (members[k]) r.weightScales[k * P + p] = float(std::sqrt(sum2[k * P + p] / double(members[k])));
-    r.vertexScales.assign(V, 0.0f);
-    for (size_t v = 0; v < V; ++v) {
-      const float* c = &r.weightScales[size_t(cluster[v]) * P];
-      float t = 0;
-      for (size_t p = 0; p < P; ++p)
-        if (c[p] > 0) t = std::max(t, std::fabs(r.weights[v * P + p]) / c[p]);
-      r.vertexScales[v] = t / 127.0f;
-    }
-    for (size_t v = 0; v < V; ++v)
-      for (size_t p = 0; p < P; ++p) {
-        const float step = cpcaInt8Step(r, v, p);
-        r.weights[v * P + p] = cpcaInt8Value(cpcaInt8Code(r.weights[v * P + p], step), step);
-      }
-  }
   std::vector<double> errAbs(V, 0.0), norms(V, 0.0);
   parallelFor(V, threads, [&](size_t a, size_t b, int) {
     std::vector<double> diff(D);
     for (size_t v = a; v < b; ++v) {
-      const size_t k = size_t(cluster[v]);
-      const float* x = c.row(v);
-      for (size_t d = 0; d < D; ++d) diff[d] = double(x[d]) - r.means[k * D + d];
-      // The residual with the stored weights, as a shader reconstructs it.
+      const size_t k = size_t(r.clusterOf[v]);
+      centred(c, r, v, diff);
       for (size_t p = 0; p < P; ++p) {
         const float* bp = &r.basis[(k * P + p) * D];
         const double w = r.weights[v * P + p];
         for (size_t d = 0; d < D; ++d) diff[d] -= w * bp[d];
       }
+      const float* x = c.row(v);
       double e = 0, n = 0;
       for (size_t d = 0; d < D; ++d) e += diff[d] * diff[d], n += double(x[d]) * x[d];
       errAbs[v] = e, norms[v] = n;
@@ -479,6 +467,46 @@ CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, in
   }
   r.totalError = sn > 0 ? std::sqrt(se / sn) : 0;
   r.rmsVertexError = V ? std::sqrt(sr / double(V)) : 0;
+}
+
+CpcaResult runCpca(const float* data, size_t V, size_t D, size_t K, size_t P, int iterations, int threads,
+                   int weightBits) {
+  const auto t0 = std::chrono::steady_clock::now();
+  K = std::max<size_t>(1, std::min(K, V));
+  Cpca c(data, V, D, threads);
+  Model m;
+  m.K = K, m.P = P, m.D = D;
+  m.rows.assign(K * (P + 1) * D, 0.0f);
+  seedMeans(c, m, V);
+  std::vector<int32_t> cluster(V, -1);
+  const int it = lloyd(c, m, cluster, V, iterations);
+  // Weights and errors in double.
+  CpcaResult r;
+  r.clusters = int(K), r.vectors = int(P), r.vertexCount = V, r.dim = D, r.iterations = it;
+  r.means.resize(K * D);
+  r.basis.resize(K * P * D);
+  for (size_t k = 0; k < K; ++k) {
+    std::copy(m.mean(k), m.mean(k) + D, &r.means[k * D]);
+    for (size_t p = 0; p < P; ++p) std::copy(m.basis(k, p), m.basis(k, p) + D, &r.basis[(k * P + p) * D]);
+  }
+  r.clusterOf = cluster;
+  r.weights.assign(V * P, 0.0f);
+  parallelFor(V, threads, [&](size_t a, size_t b, int) {
+    std::vector<double> diff(D);
+    for (size_t v = a; v < b; ++v) {
+      const size_t k = size_t(cluster[v]);
+      centred(c, r, v, diff);
+      for (size_t p = 0; p < P; ++p) {
+        const float* bp = &r.basis[(k * P + p) * D];
+        double w = 0;
+        for (size_t d = 0; d < D; ++d) w += bp[d] * diff[d];
+        r.weights[v * P + p] = float(w);
+      }
+    }
+  });
+  r.weightBits = weightBits;
+  if (weightBits == 8) quantiseWeights(r);
+  measureErrors(c, r, threads);
   r.seconds = secondsSince(t0);
   return r;
 }

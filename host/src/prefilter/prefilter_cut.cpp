@@ -598,6 +598,156 @@ TileTree makeTileTree(int n) {
   return t;
 }
 
+namespace {
+
+// One piece's pairs of the dual traversal: (tile id, packed bin entry), and the pairs that
+// fit no test.
+struct CutPairs {
+  std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  size_t unresolved = 0;
+};
+
+// Each wanted tile's lower bounds of the lobe's numerator and denominator: its own first cut
+// for tiles of 8 texels or more (kBound up), inherited by the smaller tiles below.
+void tileLowerBounds(const BinTree& tree, const Criterion& crit, const TileTree& tt, int face,
+                     const std::vector<TileGeom>& geom, const std::vector<uint8_t>& wanted, std::vector<double>* nLow,
+                     std::vector<double>* dLow) {
+  const int top = tt.levels - 1;
+  int kBound = 0;
+  while ((tt.leaf << kBound) < 8 && kBound + 1 < tt.levels) ++kBound;
+  nLow->assign(tt.offset.back(), 0.0);
+  dLow->assign(tt.offset.back(), 0.0);
+  std::vector<uint32_t> ids;
+  for (int k = kBound; k <= std::max(kBound, std::min(top, kPieceLevel(tt))); ++k)
+    for (int ty = 0; ty < tt.side(k); ++ty)
+      for (int tx = 0; tx < tt.side(k); ++tx) {
+        const uint32_t id = tt.id(k, face, ty, tx);
+        if (geom[id].exists && wanted[id]) ids.push_back(id);
+      }
+  detail::parallelEach(ids.size(), kCutThreads, [&](size_t i) {
+    thread_local std::vector<BinRef> stack;  // the walk's, kept from tile to tile
+    lowerBounds(tree, crit, geom[ids[i]], stack, &(*nLow)[ids[i]], &(*dLow)[ids[i]]);
+  });
+  for (int k = kBound - 1; k >= 0; --k)
+    for (int ty = 0; ty < tt.side(k); ++ty)
+      for (int tx = 0; tx < tt.side(k); ++tx) {
+        const uint32_t id = tt.id(k, face, ty, tx), up = tt.id(kBound, face, ty >> (kBound - k), tx >> (kBound - k));
+        (*nLow)[id] = (*nLow)[up], (*dLow)[id] = (*dLow)[up];
+      }
+}
+
+// The dual traversal of one face's tiles and the bin tree: each (tile, bin) pair is taken
+// whole when the lobe is flat enough over it (within kTileShare of the tile's lower bounds),
+// else the larger of the two is opened.
+class DualTraversal {
+ public:
+  DualTraversal(const BinTree& tree, const Criterion& crit, const TileTree& tt, int face,
+                const std::vector<TileGeom>& geom, const std::vector<uint8_t>& wanted, const std::vector<double>& nLow,
+                const std::vector<double>& dLow)
+      : tree_(tree), crit_(crit), tt_(tt), face_(face), geom_(geom), wanted_(wanted), nLow_(nLow), dLow_(dLow) {}
+
+  // The pairs reached from the starting pairs of one piece.
+  void run(std::vector<Pair> stack, CutPairs& out) const {
+    const double share = kTileShare;
+    std::vector<BinRef> todo;
+    while (!stack.empty()) {
+      const Pair p = stack.back();
+      stack.pop_back();
+      const uint32_t tid = tt_.id(p.k, face_, p.ty, p.tx);
+      const TileGeom& t = geom_[tid];
+      const auto& g = tree_.geom[p.b.node(tree_)];
+      if (g[5] <= 0.0f) continue;  // empty: no texel centre falls in it
+      const double delta = angleBetween(t.d, g);
+      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
+      if (lo >= kHalfPi) continue;  // beyond every texel's horizon: weight 0
+      const bool splitB = p.b.level > 0, splitT = p.k > 0;
+      const Range rg = crit_.range(lo, hi);
+      const double nAllow = share * nLow_[tid], dAllow = share * dLow_[tid];
+      const bool fits = crit_.fits(rg, g, nAllow, dAllow);
+      if (fits || (!splitB && !splitT)) {
+        if (!fits) ++out.unresolved;
+        out.pairs.push_back({tid, blockEntry(p.b, 0)});
+        continue;
+      }
+      if (splitB && (!splitT || g[3] >= t.radius) && p.b.level <= kNearBlockLevel && allFinest(p.b, t, tid, todo)) {
+        // Every descendant would be opened down to the finest level: the same bins as one block.
+        out.pairs.push_back({tid, blockEntry(p.b, p.b.level)});
+        out.unresolved += size_t(1) << (2 * p.b.level);
+        continue;
+      }
+      if (splitB && lo >= kBlockDistance * (g[3] + t.radius)) {
+        // Far from the tile for its size: take its descendants at the first depth that fits
+        // over the whole range (the finest when none does) as one block.
+        int depth = 1;
+        while (depth < p.b.level && !crit_.fits(rg, g, nAllow, dAllow, depth)) ++depth;
+        if (depth == p.b.level && !crit_.fits(rg, g, nAllow, dAllow, depth)) ++out.unresolved;
+        out.pairs.push_back({tid, blockEntry(p.b, depth)});
+        continue;
+      }
+      if (splitB && (!splitT || g[3] >= t.radius)) {
+        for (int k = 0; k < 4; ++k)
+          stack.push_back({p.k, p.ty, p.tx, {p.b.level - 1, p.b.face, 2 * p.b.row + (k >> 1), 2 * p.b.col + (k & 1)}});
+      } else {
+        for (int k = 0; k < 4; ++k) {
+          const int ty = 2 * p.ty + (k >> 1), tx = 2 * p.tx + (k & 1);
+          const uint32_t cid = tt_.id(p.k - 1, face_, ty, tx);
+          if (geom_[cid].exists && wanted_[cid]) stack.push_back({p.k - 1, ty, tx, p.b});
+        }
+      }
+    }
+  }
+
+ private:
+  // Whether opening bin `root` for tile t would end in finest bins only: it fails and so does
+  // every descendant above the finest level (each tested with its own range).
+  bool allFinest(const BinRef& root, const TileGeom& t, uint32_t tid, std::vector<BinRef>& todo) const {
+    todo.clear();
+    todo.push_back(root);
+    while (!todo.empty()) {
+      const BinRef b = todo.back();
+      todo.pop_back();
+      if (b.level == 0) continue;
+      const auto& g = tree_.geom[b.node(tree_)];
+      if (g[5] <= 0.0f) continue;
+      const double delta = angleBetween(t.d, g);
+      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
+      if (lo >= kHalfPi || crit_.fits(crit_.range(lo, hi), g, kTileShare * nLow_[tid], kTileShare * dLow_[tid]))
+        return false;
+      for (int k = 0; k < 4; ++k) todo.push_back({b.level - 1, b.face, 2 * b.row + (k >> 1), 2 * b.col + (k & 1)});
+    }
+    return true;
+  }
+
+  const BinTree& tree_;
+  const Criterion& crit_;
+  const TileTree& tt_;
+  int face_;
+  const std::vector<TileGeom>& geom_;
+  const std::vector<uint8_t>& wanted_;
+  const std::vector<double>&nLow_, &dLow_;
+};
+
+// The pieces' pairs as lists per tile (a counting sort by tile id), pieces in order.
+TileCuts sortByTile(const std::vector<CutPairs>& outs, const TileTree& tt) {
+  TileCuts cuts;
+  cuts.start.assign(tt.offset.back() + 1, 0);
+  size_t total = 0;
+  for (const CutPairs& o : outs) {
+    total += o.pairs.size();
+    cuts.unresolved += o.unresolved;
+    for (const auto& pr : o.pairs) ++cuts.start[pr.first + 1];
+  }
+  PRTBAKE_CHECK(total < (size_t(1) << 32), "tile cut lists too long for 32-bit offsets");
+  for (size_t i = 1; i < cuts.start.size(); ++i) cuts.start[i] += cuts.start[i - 1];
+  cuts.bins.resize(total);
+  std::vector<uint32_t> fill(cuts.start.begin(), cuts.start.end() - 1);
+  for (const CutPairs& o : outs)
+    for (const auto& pr : o.pairs) cuts.bins[fill[pr.first]++] = pr.second;
+  return cuts;
+}
+
+}  // namespace
+
 TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTree& tt, int face,
                        const std::vector<int>& leaves) {
   PRTBAKE_CHECK(tree.faceSize0 <= 1024 && tree.levels < 16, "bin tree too large for packed list entries");
@@ -608,106 +758,11 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
   for (int leaf : leaves)
     for (int k = 0; k < tt.levels; ++k) wanted[tt.id(k, face, (leaf / tt.side(0)) >> k, (leaf % tt.side(0)) >> k)] = 1;
   const Criterion crit(scale);
-  const int top = tt.levels - 1;
-  // Lower bounds per tile: own first cut for tiles of 8 texels or more, inherited below.
-  int kBound = 0;
-  while ((tt.leaf << kBound) < 8 && kBound + 1 < tt.levels) ++kBound;
-  std::vector<double> nLow(tt.offset.back(), 0.0), dLow(tt.offset.back(), 0.0);
-  {
-    std::vector<uint32_t> ids;
-    for (int k = kBound; k <= std::max(kBound, std::min(top, kPieceLevel(tt))); ++k)
-      for (int ty = 0; ty < tt.side(k); ++ty)
-        for (int tx = 0; tx < tt.side(k); ++tx) {
-          const uint32_t id = tt.id(k, face, ty, tx);
-          if (geom[id].exists && wanted[id]) ids.push_back(id);
-        }
-    detail::parallelEach(ids.size(), kCutThreads, [&](size_t i) {
-      thread_local std::vector<BinRef> stack;  // the walk's, kept from tile to tile
-      lowerBounds(tree, crit, geom[ids[i]], stack, &nLow[ids[i]], &dLow[ids[i]]);
-    });
-    for (int k = kBound - 1; k >= 0; --k)
-      for (int ty = 0; ty < tt.side(k); ++ty)
-        for (int tx = 0; tx < tt.side(k); ++tx) {
-          const uint32_t id = tt.id(k, face, ty, tx), up = tt.id(kBound, face, ty >> (kBound - k), tx >> (kBound - k));
-          nLow[id] = nLow[up], dLow[id] = dLow[up];
-        }
-  }
-  // The dual traversal. It starts from the tiles of level kTop (at least 16 per face when the
-  // level has them), each piece on its own thread; pieces are joined in order.
-  const double share = kTileShare;
-  struct Out {
-    std::vector<std::pair<uint32_t, uint32_t>> pairs;
-    size_t unresolved = 0;
-  };
-  // Whether opening bin b for tile t would end in finest bins only: b fails and so does every
-  // descendant above the finest level (each tested with its own range).
-  auto allFinest = [&](const BinRef& root, const TileGeom& t, uint32_t tid, std::vector<BinRef>& todo) {
-    todo.clear();
-    todo.push_back(root);
-    while (!todo.empty()) {
-      const BinRef b = todo.back();
-      todo.pop_back();
-      if (b.level == 0) continue;
-      const auto& g = tree.geom[b.node(tree)];
-      if (g[5] <= 0.0f) continue;
-      const double delta = angleBetween(t.d, g);
-      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
-      if (lo >= kHalfPi || crit.fits(crit.range(lo, hi), g, share * nLow[tid], share * dLow[tid])) return false;
-      for (int k = 0; k < 4; ++k) todo.push_back({b.level - 1, b.face, 2 * b.row + (k >> 1), 2 * b.col + (k & 1)});
-    }
-    return true;
-  };
-  auto run = [&](std::vector<Pair> stack, Out& out) {
-    std::vector<BinRef> todo;
-    while (!stack.empty()) {
-      const Pair p = stack.back();
-      stack.pop_back();
-      const uint32_t tid = tt.id(p.k, face, p.ty, p.tx);
-      const TileGeom& t = geom[tid];
-      const size_t node = p.b.node(tree);
-      const auto& g = tree.geom[node];
-      if (g[5] <= 0.0f) continue;  // empty: no texel centre falls in it
-      const double delta = angleBetween(t.d, g);
-      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
-      if (lo >= kHalfPi) continue;  // beyond every texel's horizon: weight 0
-      const bool splitB = p.b.level > 0, splitT = p.k > 0;
-      const Range rg = crit.range(lo, hi);
-      const double nAllow = share * nLow[tid], dAllow = share * dLow[tid];
-      const bool fits = crit.fits(rg, g, nAllow, dAllow);
-      if (fits || (!splitB && !splitT)) {
-        if (!fits) ++out.unresolved;
-        out.pairs.push_back({tid, blockEntry(p.b, 0)});
-        continue;
-      }
-      if (splitB && (!splitT || g[3] >= t.radius) && p.b.level <= kNearBlockLevel &&
-          allFinest(p.b, t, tid, todo)) {
-        // Every descendant would be opened down to the finest level: the same bins as one block.
-        out.pairs.push_back({tid, blockEntry(p.b, p.b.level)});
-        out.unresolved += size_t(1) << (2 * p.b.level);
-        continue;
-      }
-      if (splitB && lo >= kBlockDistance * (g[3] + t.radius)) {
-        // Far from the tile for its size: take its descendants at the first depth that fits
-        // over the whole range (the finest when none does) as one block.
-        int depth = 1;
-        while (depth < p.b.level && !crit.fits(rg, g, nAllow, dAllow, depth)) ++depth;
-        if (depth == p.b.level && !crit.fits(rg, g, nAllow, dAllow, depth)) ++out.unresolved;
-        out.pairs.push_back({tid, blockEntry(p.b, depth)});
-        continue;
-      }
-      if (splitB && (!splitT || g[3] >= t.radius)) {
-        for (int k = 0; k < 4; ++k)
-          stack.push_back({p.k, p.ty, p.tx, {p.b.level - 1, p.b.face, 2 * p.b.row + (k >> 1), 2 * p.b.col + (k & 1)}});
-      } else {
-        for (int k = 0; k < 4; ++k) {
-          const int ty = 2 * p.ty + (k >> 1), tx = 2 * p.tx + (k & 1);
-          const uint32_t cid = tt.id(p.k - 1, face, ty, tx);
-          if (geom[cid].exists && wanted[cid]) stack.push_back({p.k - 1, ty, tx, p.b});
-        }
-      }
-    }
-  };
-  const int kTop = std::min(top, kPieceLevel(tt));
+  std::vector<double> nLow, dLow;
+  tileLowerBounds(tree, crit, tt, face, geom, wanted, &nLow, &dLow);
+  // The traversal starts from the tiles of level kTop (at least 16 per face when the level
+  // has them), each piece on its own thread; pieces are joined in order.
+  const int kTop = std::min(tt.levels - 1, kPieceLevel(tt));
   std::vector<std::vector<Pair>> pieces;
   for (int ty = 0; ty < tt.side(kTop); ++ty)
     for (int tx = 0; tx < tt.side(kTop); ++tx) {
@@ -717,24 +772,10 @@ TileCuts buildTileCuts(const BinTree& tree, const LobeScale& scale, const TileTr
       for (int f = 0; f < 6; ++f) piece.push_back({kTop, ty, tx, {tree.levels - 1, f, 0, 0}});
       pieces.push_back(std::move(piece));
     }
-  std::vector<Out> outs(pieces.size());
-  detail::parallelEach(pieces.size(), kCutThreads, [&](size_t i) { run(pieces[i], outs[i]); });
-  // Counting sort of the pairs by tile id.
-  TileCuts cuts;
-  cuts.start.assign(tt.offset.back() + 1, 0);
-  size_t total = 0;
-  for (const Out& o : outs) {
-    total += o.pairs.size();
-    cuts.unresolved += o.unresolved;
-    for (const auto& pr : o.pairs) ++cuts.start[pr.first + 1];
-  }
-  PRTBAKE_CHECK(total < (size_t(1) << 32), "tile cut lists too long for 32-bit offsets");
-  for (size_t i = 1; i < cuts.start.size(); ++i) cuts.start[i] += cuts.start[i - 1];
-  cuts.bins.resize(total);
-  std::vector<uint32_t> fill(cuts.start.begin(), cuts.start.end() - 1);
-  for (const Out& o : outs)
-    for (const auto& pr : o.pairs) cuts.bins[fill[pr.first]++] = pr.second;
-  return cuts;
+  const DualTraversal traversal(tree, crit, tt, face, geom, wanted, nLow, dLow);
+  std::vector<CutPairs> outs(pieces.size());
+  detail::parallelEach(pieces.size(), kCutThreads, [&](size_t i) { traversal.run(pieces[i], outs[i]); });
+  return sortByTile(outs, tt);
 }
 
 std::vector<double> evaluateCutsReference(const BinTree& tree, const TileCuts& cuts, const TileTree& tt,
