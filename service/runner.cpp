@@ -242,6 +242,40 @@ RunTotals Runner::run(const std::vector<JobFileRef>& refs) {
   return totals;
 }
 
+void Runner::sweepTempFiles(const std::set<std::string>& dirs) {
+  for (const auto& d : dirs)
+    if (const int n = options_.shard.active() ? removeOldTempFiles(d, kShardStaleTempSeconds) : removeStaleTempFiles(d);
+        n > 0)
+      reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
+}
+
+void Runner::execute(const Job& job, const std::set<std::string>& dirs, Clock::time_point t0) {
+  for (const auto& d : dirs) fs::create_directories(d);
+  StagedOutputs staged(job);
+  ExecContext ctx{[this]() -> Runtime& { return runtime(); }, staged.paths()};
+  const double startupBefore = runtime_ ? 0.0 : -1.0;
+  const auto tRun = Clock::now();
+  const ExecResult result = job.type->execute(job, ctx);
+  const double runSeconds = secondsSince(tRun);
+  staged.checkAllWritten();
+  const auto inputs = hashInputs(filesRead(job, result.inputFiles), result.inputHashes);
+
+  // Commit: the old manifest goes first (so it never vouches for a mixed set),
+  // then the outputs as a set, then the new manifest, last.
+  if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
+    throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
+  staged.commit();
+  json timings = {{"run_seconds", runSeconds}, {"total_seconds", secondsSince(t0)}};
+  if (startupBefore < 0 && runtime_) timings["runtime_startup_seconds"] = runtimeStartupSeconds_;
+  const json manifest = makeManifest(job, inputs, runtime_ ? runtime_->deviceLabel() : "", timings, result.report);
+  try {
+    writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
+  } catch (...) {
+    for (const auto& o : job.outputs) ::unlink(o.path.c_str());
+    throw;
+  }
+}
+
 void Runner::runJob(const Job& job, RunTotals& totals) {
   const auto t0 = Clock::now();
   json end = {{"event", "job_end"}, {"file", job.jobFile}, {"id", job.label}};
@@ -272,11 +306,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   // Temp and staging files of killed runs, in every directory this job writes to.
   std::set<std::string> dirs;
   for (const auto& o : job.outputs) dirs.insert(dirOf(o.path));
-  if (!options_.dryRun)
-    for (const auto& d : dirs)
-      if (const int n = options_.shard.active() ? removeOldTempFiles(d, kShardStaleTempSeconds) : removeStaleTempFiles(d);
-          n > 0)
-        reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
+  if (!options_.dryRun) sweepTempFiles(dirs);
 
   if (!options_.force) {
     const std::string why = whyOutOfDate(job);
@@ -302,30 +332,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   }
 
   try {
-    for (const auto& d : dirs) fs::create_directories(d);
-    StagedOutputs staged(job);
-    ExecContext ctx{[this]() -> Runtime& { return runtime(); }, staged.paths()};
-    const double startupBefore = runtime_ ? 0.0 : -1.0;
-    const auto tRun = Clock::now();
-    const ExecResult result = job.type->execute(job, ctx);
-    const double runSeconds = secondsSince(tRun);
-    staged.checkAllWritten();
-    const auto inputs = hashInputs(filesRead(job, result.inputFiles), result.inputHashes);
-
-    // Commit: the old manifest goes first (so it never vouches for a mixed set),
-    // then the outputs as a set, then the new manifest, last.
-    if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
-      throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
-    staged.commit();
-    json timings = {{"run_seconds", runSeconds}, {"total_seconds", secondsSince(t0)}};
-    if (startupBefore < 0 && runtime_) timings["runtime_startup_seconds"] = runtimeStartupSeconds_;
-    const json manifest = makeManifest(job, inputs, runtime_ ? runtime_->deviceLabel() : "", timings, result.report);
-    try {
-      writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
-    } catch (...) {
-      for (const auto& o : job.outputs) ::unlink(o.path.c_str());
-      throw;
-    }
+    execute(job, dirs, t0);
   } catch (const cl::Error& e) {
     fail(describeClError(e, runtime_ ? runtime_->deviceLabel() : lastDeviceLabel()));
     return;

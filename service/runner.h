@@ -72,6 +72,11 @@ class Runner {
 
  private:
   void runJob(const Job& job, RunTotals& totals);
+  // Removes the temp and staging files of killed runs in the directories a job writes to.
+  void sweepTempFiles(const std::set<std::string>& dirs);
+  // Runs a valid job into staged outputs and commits them with their manifest (throws on
+  // failure, leaving the previous outputs' manifest gone and no new output in place).
+  void execute(const Job& job, const std::set<std::string>& dirs, std::chrono::steady_clock::time_point t0);
   Runtime& runtime();
 
   RunOptions options_;

@@ -56,7 +56,7 @@ TEST_CASE("run: every validation problem is named with job, key and file", "[job
   CHECK(r.exitCode == 1);
   const std::string p = "prtbake: error: " + jobFile + ": job ";
   CHECK_THAT(r.output, Catch::Contains(p + "'misspelt': ordr: unknown key for env jobs (did you mean 'order'?)"));
-  CHECK_THAT(r.output, Catch::Contains(p + "'wrongtype': order: expected an integer, got \"three\""));
+  CHECK_THAT(r.output, Catch::Contains(p + "'wrongtype': order: expected an integer or auto, got \"three\""));
   CHECK_THAT(r.output, Catch::Contains(p + "'range': order: 40 is out of range [1, 32]"));
   CHECK_THAT(r.output, Catch::Contains(p + "'choice': window: unknown value 'han' (expected none|hann|lanczos|auto); did you mean 'hann'?"));
   CHECK_THAT(r.output, Catch::Contains(p + "'noinput': input: file does not exist: " + dir + "/missing.exr"));

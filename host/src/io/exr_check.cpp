@@ -90,12 +90,96 @@ std::string readPrefix(const std::string& path, size_t most, size_t* fileSize) {
   return b;
 }
 
+InputError corruptHeader(const std::string& path, const std::string& what) {
+  return InputError(path, "corrupt OpenEXR header: " + what);
+}
+
+// The values the library reads by their content rather than by the size field must fill
+// their size exactly, or the library's reading and the header walk part ways (a chlist one
+// byte longer than its size had the library take later bytes for a 1.6 GB string's length).
+// The value of attribute `name` lies in b[pos, end); a channel list's channels and bytes per
+// pixel go to *channels and *bytesPerPixel.
+void checkValueFill(const std::string& path, const std::string& b, size_t pos, size_t end, const std::string& name,
+                    const std::string& type, int* channels, double* bytesPerPixel) {
+  const size_t size = end - pos;
+  const size_t fixed = fixedValueSize(type);
+  if (fixed && size != fixed)
+    throw corruptHeader(path, "attribute '" + name + "' of type " + type + " has " + std::to_string(size) +
+                                  " bytes, not " + std::to_string(fixed));
+  if (type == "chlist") {  // entries name\0 + 16 bytes, then \0
+    size_t p = pos;
+    while (p < end && b[p] != '\0') {
+      const size_t nul = b.find('\0', p);
+      if (nul == std::string::npos || nul >= end || end - nul - 1 < 16) throw corruptHeader(path, "malformed channel list");
+      // pixel type (0 uint, 1 half, 2 float), pLinear and 3 reserved bytes, x and y sampling
+      const int32_t pixelType = le32(b, nul + 1), xs = le32(b, nul + 9), ys = le32(b, nul + 13);
+      if (xs > 0 && ys > 0) *bytesPerPixel += (pixelType == 1 ? 2.0 : 4.0) / (double(xs) * double(ys));
+      p = nul + 1 + 16;
+      ++*channels;
+    }
+    if (p + 1 != end)
+      throw corruptHeader(path, "the channel list does not fill its " + std::to_string(size) + " bytes");
+  } else if (type == "preview") {  // width, height, then width × height RGBA bytes
+    if (size < 8 || double(uint32_t(le32(b, pos))) * double(uint32_t(le32(b, pos + 4))) * 4 + 8 != double(size))
+      throw corruptHeader(path, "the preview image does not fill its " + std::to_string(size) + " bytes");
+  } else if (type == "stringvector") {  // int32 length, then that many bytes, repeated
+    size_t p = pos;
+    while (end - p >= 4) {
+      const int32_t n = le32(b, p);
+      if (n < 0 || size_t(n) > end - p - 4) throw corruptHeader(path, "malformed string vector '" + name + "'");
+      p += 4 + size_t(n);
+    }
+    if (p != end) throw corruptHeader(path, "malformed string vector '" + name + "'");
+  }
+}
+
+// What the first part's header says of its pixels' storage.
+struct PixelStorage {
+  int compression = 3;  // a header without the attribute keeps the library's default, ZIP
+  long long tileWidth = 0, tileHeight = 0;
+  double pixelBytes = 0;  // of the channels, per pixel of the data window
+  bool tiled = false, multipart = false;
+};
+
+// The bytes after the headers (from `pos` on) must be able to hold the data window's pixels:
+// the chunks hold them at most maxExpansion times their size (a tiled file's other levels and
+// other parts only add to what they need), and a single-part scanline file's offset table
+// follows the header.
+void checkPixelBytes(const std::string& path, const ExrHeaderFacts& facts, const PixelStorage& ps, size_t fileSize,
+                     size_t pos) {
+  // The library's decompressor holds a whole chunk, whatever the data window: a scanline
+  // chunk's lines (16 for ZIP: a 14-million-pixel row of a 177-byte file had it allocate
+  // 914 MB) or a tile, so the data window counts as at least one chunk.
+  const double ratio = maxExpansion(ps.compression), dataBytes = double(fileSize - pos);
+  const double width = double(std::max(facts.width, 0LL)), height = double(std::max(facts.height, 0LL));
+  const double chunkWidth = ps.tiled ? double(ps.tileWidth) : width;
+  const double chunkLines = ps.tiled ? double(ps.tileHeight) : linesPerChunk(ps.compression);
+  const double pixelDataBytes = std::max(width * height, chunkWidth * chunkLines) * ps.pixelBytes;
+  if (ratio > 0 && pixelDataBytes > ratio * dataBytes + 65536.0)
+    throw InputError(path, "truncated OpenEXR file: its " + std::to_string(facts.width) + "x" + std::to_string(facts.height) +
+                               " data window" + (width * height >= chunkWidth * chunkLines ? "" : " (in chunks of " +
+                               wholeNumber(chunkWidth) + "x" + wholeNumber(chunkLines) + ")") + " holds " +
+                               wholeNumber(pixelDataBytes) + " bytes of pixels, more than the " + wholeNumber(dataBytes) +
+                               " bytes after its header can decode to");
+  // One 8-byte offset per chunk of lines.
+  if (!ps.multipart && !ps.tiled && facts.height > 0) {
+    const int lines = linesPerChunk(ps.compression);
+    if (lines > 0) {
+      const double tableBytes = 8.0 * double((facts.height + lines - 1) / lines);
+      if (tableBytes > double(fileSize - pos))
+        throw InputError(path, "truncated OpenEXR file: the offset table of its " + std::to_string(facts.height) +
+                                   " lines needs " + std::to_string((long long)tableBytes) + " bytes, the file has " +
+                                   std::to_string(fileSize - pos) + " after the header");
+    }
+  }
+}
+
 }  // namespace
 
 ExrHeaderFacts checkExrHeader(const std::string& path) {
   size_t fileSize = 0;
   const std::string b = readPrefix(path, kHeaderBytes, &fileSize);
-  auto corrupt = [&](const std::string& what) { return InputError(path, "corrupt OpenEXR header: " + what); };
+  auto corrupt = [&](const std::string& what) { return corruptHeader(path, what); };
   if (b.size() < 8) throw InputError(path, "truncated OpenEXR file (" + std::to_string(b.size()) + " bytes)");
   const bool whole = b.size() == fileSize;
   // Where the walk needs a byte beyond b: past the end of the file, or of the prefix read.
@@ -106,11 +190,10 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
   };
   const uint32_t flags = uint32_t(le32(b, 4)) & ~0xffu;
   const size_t maxName = (flags & kLongNamesFlag) ? 255 : 31;
-  const bool multipart = (flags & kMultipartFlag) != 0;
   ExrHeaderFacts facts;
-  int compression = 3;  // a header without the attribute keeps the library's default, ZIP
-  long long tileWidth = 0, tileHeight = 0;
-  double pixelBytes = 0;  // of the first part's channels, per pixel of its data window
+  PixelStorage ps;
+  ps.multipart = (flags & kMultipartFlag) != 0;
+  ps.tiled = (flags & kTiledFlag) != 0;
   size_t pos = 8;
   // A null-terminated string of at most maxName characters at pos.
   auto readName = [&](const char* what) {
@@ -142,82 +225,24 @@ ExrHeaderFacts checkExrHeader(const std::string& path) {
         throw corrupt("attribute '" + name + "' claims " + std::to_string(size) + " bytes, the file has " +
                       std::to_string(fileSize - pos) + " left");
       if (size_t(size) > b.size() - pos) throw pastEnd("attribute '" + name + "'");
-      // The library reads some values by their content rather than by the size field;
-      // each such value must fill its size exactly, or the library's reading and this
-      // walk part ways (a chlist one byte longer than its size had the library take
-      // later bytes for a 1.6 GB string's length).
       const size_t end = pos + size_t(size);
-      const size_t fixed = fixedValueSize(type);
-      if (fixed && size_t(size) != fixed)
-        throw corrupt("attribute '" + name + "' of type " + type + " has " + std::to_string(size) + " bytes, not " +
-                      std::to_string(fixed));
-      if (type == "chlist") {  // entries name\0 + 16 bytes, then \0
-        size_t p = pos;
-        int channels = 0;
-        double bytesPerPixel = 0;
-        while (p < end && b[p] != '\0') {
-          const size_t nul = b.find('\0', p);
-          if (nul == std::string::npos || nul >= end || end - nul - 1 < 16) throw corrupt("malformed channel list");
-          // pixel type (0 uint, 1 half, 2 float), pLinear and 3 reserved bytes, x and y sampling
-          const int32_t type = le32(b, nul + 1), xs = le32(b, nul + 9), ys = le32(b, nul + 13);
-          if (xs > 0 && ys > 0) bytesPerPixel += (type == 1 ? 2.0 : 4.0) / (double(xs) * double(ys));
-          p = nul + 1 + 16;
-          ++channels;
-        }
-        if (p + 1 != end) throw corrupt("the channel list does not fill its " + std::to_string(size) + " bytes");
-        if (part == 0 && name == "channels") facts.channels = channels, pixelBytes = bytesPerPixel;
-      } else if (type == "preview") {  // width, height, then width × height RGBA bytes
-        if (size < 8 || double(uint32_t(le32(b, pos))) * double(uint32_t(le32(b, pos + 4))) * 4 + 8 != double(size))
-          throw corrupt("the preview image does not fill its " + std::to_string(size) + " bytes");
-      } else if (type == "stringvector") {  // int32 length, then that many bytes, repeated
-        size_t p = pos;
-        while (end - p >= 4) {
-          const int32_t n = le32(b, p);
-          if (n < 0 || size_t(n) > end - p - 4) throw corrupt("malformed string vector '" + name + "'");
-          p += 4 + size_t(n);
-        }
-        if (p != end) throw corrupt("malformed string vector '" + name + "'");
-      }
+      int channels = 0;
+      double bytesPerPixel = 0;
+      checkValueFill(path, b, pos, end, name, type, &channels, &bytesPerPixel);
+      if (part == 0 && name == "channels" && type == "chlist") facts.channels = channels, ps.pixelBytes = bytesPerPixel;
       if (part == 0 && name == "dataWindow" && type == "box2i") {
         facts.width = (long long)le32(b, pos + 8) - le32(b, pos) + 1;
         facts.height = (long long)le32(b, pos + 12) - le32(b, pos + 4) + 1;
       } else if (part == 0 && name == "compression" && type == "compression") {
-        compression = uint8_t(b[pos]);
+        ps.compression = uint8_t(b[pos]);
       } else if (part == 0 && name == "tiles" && type == "tiledesc") {
-        tileWidth = (long long)uint32_t(le32(b, pos)), tileHeight = (long long)uint32_t(le32(b, pos + 4));
+        ps.tileWidth = (long long)uint32_t(le32(b, pos)), ps.tileHeight = (long long)uint32_t(le32(b, pos + 4));
       }
       pos = end;
     }
-    if (!multipart) break;
+    if (!ps.multipart) break;
   }
-  // The chunks after the headers hold the first part's pixels at most maxExpansion times
-  // their size (a tiled file's other levels and other parts only add to what they need).
-  // The library's decompressor holds a whole chunk, whatever the data window: a scanline
-  // chunk's lines (16 for ZIP: a 14-million-pixel row of a 177-byte file had it allocate
-  // 914 MB) or a tile, so the data window counts as at least one chunk.
-  const double ratio = maxExpansion(compression), dataBytes = double(fileSize - pos);
-  const bool tiled = (flags & kTiledFlag) != 0;
-  const double width = double(std::max(facts.width, 0LL)), height = double(std::max(facts.height, 0LL));
-  const double chunkWidth = tiled ? double(tileWidth) : width, chunkLines = tiled ? double(tileHeight) : linesPerChunk(compression);
-  const double pixelDataBytes = std::max(width * height, chunkWidth * chunkLines) * pixelBytes;
-  if (ratio > 0 && pixelDataBytes > ratio * dataBytes + 65536.0)
-    throw InputError(path, "truncated OpenEXR file: its " + std::to_string(facts.width) + "x" + std::to_string(facts.height) +
-                               " data window" + (width * height >= chunkWidth * chunkLines ? "" : " (in chunks of " +
-                               wholeNumber(chunkWidth) + "x" + wholeNumber(chunkLines) + ")") + " holds " +
-                               wholeNumber(pixelDataBytes) + " bytes of pixels, more than the " + wholeNumber(dataBytes) +
-                               " bytes after its header can decode to");
-  // A single-part scanline file's offset table follows the header: one 8-byte offset
-  // per chunk of lines.
-  if (!multipart && !(flags & kTiledFlag) && facts.height > 0) {
-    const int lines = linesPerChunk(compression);
-    if (lines > 0) {
-      const double tableBytes = 8.0 * double((facts.height + lines - 1) / lines);
-      if (tableBytes > double(fileSize - pos))
-        throw InputError(path, "truncated OpenEXR file: the offset table of its " + std::to_string(facts.height) +
-                                   " lines needs " + std::to_string((long long)tableBytes) + " bytes, the file has " +
-                                   std::to_string(fileSize - pos) + " after the header");
-    }
-  }
+  checkPixelBytes(path, facts, ps, fileSize, pos);
   return facts;
 }
 

@@ -330,6 +330,60 @@ PrefilterErrorEstimate estimateError(const std::vector<float>& rgb, const std::v
 
 }  // namespace
 
+namespace {
+
+// The leaves whose texels the error estimate recomputes: kEstimateTexelsPerFace texels' worth
+// of each face's leaves, spread over it.
+std::vector<std::vector<int>> estimateLeaves(const detail::TileTree& tt, const std::vector<int>& faceLeaves) {
+  const size_t perFace =
+      std::min(faceLeaves.size(), std::max<size_t>(1, kEstimateTexelsPerFace / size_t(tt.leaf * tt.leaf)));
+  std::vector<std::vector<int>> subset(6);
+  for (size_t f = 0; f < 6; ++f) {
+    for (size_t i = 0; i < perFace; ++i)
+      subset[f].push_back(faceLeaves[(i * faceLeaves.size() + f * 7) / perFace % faceLeaves.size()]);
+    std::sort(subset[f].begin(), subset[f].end());
+    subset[f].erase(std::unique(subset[f].begin(), subset[f].end()), subset[f].end());
+  }
+  return subset;
+}
+
+// One level by the cut, at level.alphaUsed: the per-bin tolerance starts at
+// kFirstBinTolerance × the target and halves while the estimated 99th percentile (the
+// estimate's leaves again with every bin error bound divided by 4) misses the target.
+void cutLevel(Runtime& rt, CutRunner& runner, const PrefilterOptions& options, PrefilterLevel& level) {
+  const int n = level.spec.size;
+  const cl_float4 params = lobeParams(options.lobe, level.alphaUsed);
+  const size_t texels = size_t(6) * size_t(n) * size_t(n);
+  cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
+  cl::Buffer check;
+  const detail::TileTree tt = detail::makeTileTree(n);
+  const std::vector<int> faceLeaves = CutRunner::allLeaves(tt);
+  const std::vector<std::vector<int>> all(6, faceLeaves);
+  const std::vector<std::vector<int>> subset = estimateLeaves(tt, faceLeaves);
+  double eps = kFirstBinTolerance * options.tolerance;
+  for (int pass = 0;; ++pass) {
+    const detail::LobeScale scale(options.lobe, level.alphaUsed, eps);
+    level.binsSummed = runner.run(scale, params, tt, all, out, &level.cutSeconds, &level.kernelSeconds, nullptr);
+    level.rgb.resize(texels * 3);
+    rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, level.rgb.size() * sizeof(float), level.rgb.data());
+    level.binTolerance = eps;
+    level.passes = pass + 1;
+    if (!options.errorEstimate) break;
+    const detail::LobeScale fine(options.lobe, level.alphaUsed, eps / 4);
+    if (pass == 0) check = cl::Buffer(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
+    double cutS = 0, kernelS = 0;
+    runner.run(fine, params, tt, subset, check, &cutS, &kernelS, nullptr);
+    level.estimateSeconds += cutS + kernelS;
+    std::vector<float> ref(texels * 3);
+    rt.queue().enqueueReadBuffer(check, CL_TRUE, 0, ref.size() * sizeof(float), ref.data());
+    level.error = estimateError(level.rgb, ref, tt, subset);
+    if (level.error.p99 <= options.tolerance || pass + 1 >= kMaxPasses) break;
+    eps /= 2;
+  }
+}
+
+}  // namespace
+
 PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const PrefilterOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<PrefilterLevelSpec> specs = prefilterLevels(options);
@@ -382,46 +436,7 @@ PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const Prefi
       level.alphaUsed = lobe == PrefilterLobe::Ggx       ? std::max(spec.alpha, result.alphaFloor)
                         : lobe == PrefilterLobe::Charlie ? std::max(spec.alpha, kLutClothAlphaMin)
                                                          : 1.0;
-      const cl_float4 params = lobeParams(lobe, level.alphaUsed);
-      const size_t texels = size_t(6) * size_t(n) * size_t(n);
-      cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
-      cl::Buffer check;
-      const detail::TileTree tt = detail::makeTileTree(n);
-      const std::vector<int> faceLeaves = CutRunner::allLeaves(tt);
-      const std::vector<std::vector<int>> all(6, faceLeaves);
-      // The estimate's leaves: spread over each face.
-      const size_t perFace =
-          std::min(faceLeaves.size(), std::max<size_t>(1, kEstimateTexelsPerFace / size_t(tt.leaf * tt.leaf)));
-      std::vector<std::vector<int>> subset(6);
-      for (int f = 0; f < 6; ++f) {
-        for (size_t i = 0; i < perFace; ++i)
-          subset[size_t(f)].push_back(faceLeaves[(i * faceLeaves.size() + size_t(f) * 7) / perFace % faceLeaves.size()]);
-        std::sort(subset[size_t(f)].begin(), subset[size_t(f)].end());
-        subset[size_t(f)].erase(std::unique(subset[size_t(f)].begin(), subset[size_t(f)].end()), subset[size_t(f)].end());
-      }
-      // Per-bin tolerance: start at kFirstBinTolerance × the target and halve it while the
-      // estimated 99th percentile misses the target.
-      double eps = kFirstBinTolerance * options.tolerance;
-      for (int pass = 0;; ++pass) {
-        const detail::LobeScale scale(lobe, level.alphaUsed, eps);
-        level.binsSummed = runner->run(scale, params, tt, all, out, &level.cutSeconds, &level.kernelSeconds, nullptr);
-        level.rgb.resize(texels * 3);
-        rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, level.rgb.size() * sizeof(float), level.rgb.data());
-        level.binTolerance = eps;
-        level.passes = pass + 1;
-        if (!options.errorEstimate) break;
-        // The subset again with every bin error bound divided by 4.
-        const detail::LobeScale fine(lobe, level.alphaUsed, eps / 4);
-        if (pass == 0) check = cl::Buffer(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
-        double cutS = 0, kernelS = 0;
-        runner->run(fine, params, tt, subset, check, &cutS, &kernelS, nullptr);
-        level.estimateSeconds += cutS + kernelS;
-        std::vector<float> ref(texels * 3);
-        rt.queue().enqueueReadBuffer(check, CL_TRUE, 0, ref.size() * sizeof(float), ref.data());
-        level.error = estimateError(level.rgb, ref, tt, subset);
-        if (level.error.p99 <= options.tolerance || pass + 1 >= kMaxPasses) break;
-        eps /= 2;
-      }
+      cutLevel(rt, *runner, options, level);
     }
     for (float v : level.rgb)
       if (!std::isfinite(v) || v < 0.0f)

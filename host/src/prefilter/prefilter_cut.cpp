@@ -257,6 +257,63 @@ class TexelStream {
 // by that key (counting sort), and summed bin by bin in key order: the four children of every
 // node then come one after the other, so each level's sums are reduced into the next with a
 // stack of one partial sum per level instead of a double array per level.
+namespace {
+
+// Sums of one bin: F (3), Ω, m_L (3), m_G (3).
+using BinSums = std::array<double, 10>;
+
+// The texels in Morton order of their finest bins: bin k's texels are order[start[k] ..
+// start[k + 1]).
+void mortonOrder(const TexelStream& stream, size_t count, int m0, std::vector<uint32_t>* start,
+                 RawVector<uint32_t>* order) {
+  const size_t keys = 6 * size_t(m0) * size_t(m0);
+  RawVector<uint32_t> key(count);
+  start->assign(keys + 1, 0);
+  for (size_t i = 0; i < count; ++i) {
+    double d[3], omega, u, v;
+    int f;
+    stream.texel(i, d, &omega);
+    cubeFaceUv(d, &f, &u, &v);
+    const uint32_t c = uint32_t(std::clamp(int((u + 1.0) * 0.5 * m0), 0, m0 - 1));
+    const uint32_t r = uint32_t(std::clamp(int((v + 1.0) * 0.5 * m0), 0, m0 - 1));
+    key[i] = uint32_t(f) * uint32_t(m0) * uint32_t(m0) + (spread10(r) << 1 | spread10(c));
+    ++(*start)[key[i] + 1];
+  }
+  for (size_t k = 0; k < keys; ++k) (*start)[k + 1] += (*start)[k];
+  std::vector<uint32_t> fill(start->begin(), start->end() - 1);
+  for (size_t i = 0; i < count; ++i) (*order)[fill[key[i]]++] = uint32_t(i);
+}
+
+// Bin `faceKey` (face and Morton code) of `level` from its sums: flux, the two mean
+// directions and the geometry the traversal reads. cells: each level's cells.
+void storeBin(BinTree& t, const std::vector<std::vector<Cell>>& cells, int level, uint32_t faceKey,
+              const BinSums& a) {
+  const int m = t.faceSize0 >> level;
+  const uint32_t perFace = uint32_t(m) * uint32_t(m), face = faceKey / perFace, morton = faceKey % perFace;
+  const uint32_t r = compact10(morton >> 1), c = compact10(morton);
+  const size_t i = t.offset[size_t(level)] + (size_t(face) * size_t(m) + r) * size_t(m) + c;
+  double dl[3] = {a[4], a[5], a[6]}, dg[3] = {a[7], a[8], a[9]};
+  const double wl = (a[0] + a[1] + a[2]) / 3.0;
+  const double lenL = std::sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
+  const double lenG = std::sqrt(dg[0] * dg[0] + dg[1] * dg[1] + dg[2] * dg[2]);
+  const float spreadG = a[3] > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenG / a[3]))) : 0.0f;
+  const float spreadL = wl > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenL / wl))) : spreadG;
+  const Cell& cell = cells[size_t(level)][size_t(r) * size_t(m) + c];
+  double centre[3];
+  toWorld(int(face), cell, centre);
+  if (!(lenL > 0)) std::copy(dg, dg + 3, dl);
+  if (!(lenG > 0)) std::copy(centre, centre + 3, dg), std::copy(centre, centre + 3, dl);
+  normalize3(dl);
+  normalize3(dg);
+  for (int k = 0; k < 4; ++k) t.flux[4 * i + size_t(k)] = float(a[size_t(k)]);
+  for (int k = 0; k < 3; ++k) t.dirL[4 * i + size_t(k)] = float(dl[k]), t.dirG[4 * i + size_t(k)] = float(dg[k]);
+  t.dirL[4 * i + 3] = t.dirG[4 * i + 3] = 0.0f;
+  t.geom[i] = {float(centre[0]), float(centre[1]), float(centre[2]), float(cell.radius),
+               float(wl), float(a[3]), spreadL, spreadG};
+}
+
+}  // namespace
+
 BinTree buildBinTree(const EnvMap& env, int m0) {
   PRTBAKE_CHECK(m0 >= 1 && m0 <= 1024 && (m0 & (m0 - 1)) == 0, "bin face size must be a power of two up to 1024");
   BinTree t;
@@ -274,23 +331,9 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
 
   const TexelStream stream(env);
   const size_t count = env.texelCount(), keys = 6 * size_t(m0) * size_t(m0);
-  RawVector<uint32_t> key(count), order(count);
-  std::vector<uint32_t> start(keys + 1, 0);
-  for (size_t i = 0; i < count; ++i) {
-    double d[3], omega, u, v;
-    int f;
-    stream.texel(i, d, &omega);
-    cubeFaceUv(d, &f, &u, &v);
-    const uint32_t c = uint32_t(std::clamp(int((u + 1.0) * 0.5 * m0), 0, m0 - 1));
-    const uint32_t r = uint32_t(std::clamp(int((v + 1.0) * 0.5 * m0), 0, m0 - 1));
-    key[i] = uint32_t(f) * uint32_t(m0) * uint32_t(m0) + (spread10(r) << 1 | spread10(c));
-    ++start[key[i] + 1];
-  }
-  for (size_t k = 0; k < keys; ++k) start[k + 1] += start[k];
-  {
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    for (size_t i = 0; i < count; ++i) order[fill[key[i]]++] = uint32_t(i);
-  }
+  RawVector<uint32_t> order(count);
+  std::vector<uint32_t> start;
+  mortonOrder(stream, count, m0, &start, &order);
 
   // Per-level cells (centre and radius in face coordinates), the same on every face.
   std::vector<std::vector<Cell>> cells(static_cast<size_t>(t.levels));
@@ -302,36 +345,10 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
         cells[size_t(l)][size_t(r) * size_t(m) + size_t(c)] =
             cellOf(2.0 * c / m - 1.0, 2.0 * (c + 1) / m - 1.0, 2.0 * r / m - 1.0, 2.0 * (r + 1) / m - 1.0);
   }
-  // Sums: F (3), Ω, m_L (3), m_G (3).
-  using Sums = std::array<double, 10>;
-  auto emit = [&](int level, uint32_t faceKey, const Sums& a) {
-    const int m = m0 >> level;
-    const uint32_t perFace = uint32_t(m) * uint32_t(m), face = faceKey / perFace, morton = faceKey % perFace;
-    const uint32_t r = compact10(morton >> 1), c = compact10(morton);
-    const size_t i = t.offset[size_t(level)] + (size_t(face) * size_t(m) + r) * size_t(m) + c;
-    double dl[3] = {a[4], a[5], a[6]}, dg[3] = {a[7], a[8], a[9]};
-    const double wl = (a[0] + a[1] + a[2]) / 3.0;
-    const double lenL = std::sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
-    const double lenG = std::sqrt(dg[0] * dg[0] + dg[1] * dg[1] + dg[2] * dg[2]);
-    const float spreadG = a[3] > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenG / a[3]))) : 0.0f;
-    const float spreadL = wl > 0 ? float(std::max(0.0, 2.0 * (1.0 - lenL / wl))) : spreadG;
-    const Cell& cell = cells[size_t(level)][size_t(r) * size_t(m) + c];
-    double centre[3];
-    toWorld(int(face), cell, centre);
-    if (!(lenL > 0)) std::copy(dg, dg + 3, dl);
-    if (!(lenG > 0)) std::copy(centre, centre + 3, dg), std::copy(centre, centre + 3, dl);
-    normalize3(dl);
-    normalize3(dg);
-    for (int k = 0; k < 4; ++k) t.flux[4 * i + size_t(k)] = float(a[size_t(k)]);
-    for (int k = 0; k < 3; ++k) t.dirL[4 * i + size_t(k)] = float(dl[k]), t.dirG[4 * i + size_t(k)] = float(dg[k]);
-    t.dirL[4 * i + 3] = t.dirG[4 * i + 3] = 0.0f;
-    t.geom[i] = {float(centre[0]), float(centre[1]), float(centre[2]), float(cell.radius),
-                 float(wl), float(a[3]), spreadL, spreadG};
-  };
-  std::vector<Sums> partial(static_cast<size_t>(t.levels), Sums{});
+  std::vector<BinSums> partial(static_cast<size_t>(t.levels), BinSums{});
   std::vector<int> children(static_cast<size_t>(t.levels), 0);
   for (uint32_t k = 0; k < keys; ++k) {
-    Sums a{};
+    BinSums a{};
     for (uint32_t o = start[k]; o < start[k + 1]; ++o) {
       double d[3], omega;
       stream.texel(order[o], d, &omega);
@@ -344,16 +361,16 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
       }
       a[3] += omega;
     }
-    // Emit the bin, then every ancestor whose four children are now done.
+    // Store the bin, then every ancestor whose four children are now done.
     uint32_t code = k;
     for (int l = 0; l < t.levels; ++l) {
-      emit(l, code, a);
+      storeBin(t, cells, l, code, a);
       if (l + 1 == t.levels) break;
-      Sums& p = partial[size_t(l) + 1];
+      BinSums& p = partial[size_t(l) + 1];
       for (size_t j = 0; j < a.size(); ++j) p[j] += a[j];
       if (++children[size_t(l) + 1] < 4) break;
       a = p;
-      p = Sums{};
+      p = BinSums{};
       children[size_t(l) + 1] = 0;
       code >>= 2;
     }
