@@ -1,6 +1,7 @@
 // Benchmark: environment projection throughput, whole-command wall time and peak memory.
 //
 //   bench_env [RESULTS.json] [--kernel-only] [--sweep]
+//   bench_env --write-latlong PATH: only write the float32 8192×4096 lat-long (for bench_ab.sh).
 //   --sweep: order-3 kernel time for each vector width and rows per work-group, printed only.
 // 1. Kernel throughput for 6×2048² float RGB faces (302 MB) at orders 3 and 8:
 //    median (and minimum) device time of 15 runs after a warm-up, texels/s and the equivalent
@@ -131,10 +132,14 @@ int main(int argc, char** argv) {
   bool kernelOnly = false, sweep = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
+    if (a == "--write-latlong" && i + 1 < argc) {
+      writeLatLong(argv[i + 1], false);
+      return 0;
+    }
     if (a == "--kernel-only") kernelOnly = true;
     else if (a == "--sweep") sweep = true;
     else if (!a.empty() && a[0] == '-') {
-      std::fprintf(stderr, "usage: bench_env [RESULTS.json] [--kernel-only] [--sweep]\n");
+      std::fprintf(stderr, "usage: bench_env [RESULTS.json] [--kernel-only] [--sweep] | --write-latlong PATH\n");
       return 2;
     } else results = a;
   }

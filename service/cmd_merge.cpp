@@ -111,31 +111,16 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
     if (rows != jobs::manifestInt(rep, "vertex_count", size_t(0)) || columns != size_t(r.order) * r.order)
       throw InputError(path, "shape does not match the job (order " + std::to_string(r.order) + ")");
     r.coeffs.insert(r.coeffs.end(), part.begin(), part.end());
-    r.rays += jobs::manifestInt(rep, "rays", uint64_t(0));
     r.totalSamples += jobs::manifestInt(rep, "total_samples", uint64_t(0));
-    r.verticesUnoccludable += jobs::manifestInt(rep, "vertices_unoccludable", size_t(0));
-    r.maxStdError = std::max(r.maxStdError, rep.value("standard_error_max", 0.0));
-    errorSum += rep.value("standard_error_mean", 0.0) * double(rows);
-    r.bvhNodes = std::max(r.bvhNodes, jobs::manifestInt(rep, "bvh_nodes", size_t(0)));
-    r.degenerateTriangles = std::max(r.degenerateTriangles, jobs::manifestInt(rep, "degenerate_triangles", size_t(0)));
-    r.verticesWithoutNormal += jobs::manifestInt(rep, "vertices_without_normal", size_t(0));
-    if (r.device.empty()) r.device = rep.value("device", "");
-    const json& t = rep["timings"];
-    r.bvhSeconds += t.value("bvh_seconds", 0.0);
-    r.kernelSeconds += t.value("kernel_seconds", 0.0);
-    r.totalSeconds += t.value("total_seconds", 0.0);
+    r.bvhSeconds += rep["timings"].value("bvh_seconds", 0.0);
+    jobs::addShardReport(r, rep, &errorSum);
   }
   r.meanStdError = vertices ? errorSum / double(vertices) : 0;
 
   // Every output's bytes first, then the writes (as runTransport does).
   const bool needMesh = job.findOutput("gltf") || job.findOutput("games202") || job.findOutput("json");
   Mesh mesh;
-  if (needMesh) {
-    mesh = loadMesh(job.input);
-    if (mesh.vertexCount() != vertices)
-      throw InputError(job.input, "has " + std::to_string(mesh.vertexCount()) + " vertices, the shards saw " +
-                                      std::to_string(vertices));
-  }
+  if (needMesh) mesh = jobs::loadMergedMesh(job, vertices);
   std::vector<std::pair<std::string, std::string>> files;
   for (const auto& o : job.outputs) {
     if (o.kind == "npy") files.emplace_back(o.path, transportNpyBytes(r));
@@ -143,12 +128,8 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
     if (o.kind == "gltf") files.emplace_back(o.path, transportGltfBytes(o.path, mesh, r));
     if (o.kind == "json") files.emplace_back(o.path, transportSidecarBytes(job.input, mesh, options, r));
   }
-  // The old manifest goes first, so it never vouches for a mixed set; the new one last.
-  if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
-    throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
+  jobs::removeOldManifest(job);
   for (const auto& [path, bytes] : files) writeFileAtomic(path, bytes);
-  std::vector<jobs::InputHash> inputs;
-  for (const auto& in : manifests[0]["inputs"]) inputs.push_back({in.value("path", std::string()), in.value("sha256", std::string())});
   const json report = {{"vertices", r.vertexCount},
                        {"channels", r.channels},
                        {"samples", r.samples},
@@ -159,8 +140,7 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
                        {"shards", n},
                        {"timings", {{"bvh_seconds", r.bvhSeconds}, {"kernel_seconds", r.kernelSeconds},
                                     {"total_seconds", r.totalSeconds}}}};
-  const json manifest = jobs::makeManifest(job, inputs, r.device, {{"shard_total_seconds", r.totalSeconds}}, report);
-  writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
+  jobs::writeMergedManifest(job, manifests[0], r.device, r.totalSeconds, report);
   *info = {{"vertices", vertices}};
   return {};
 }

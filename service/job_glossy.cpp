@@ -261,28 +261,13 @@ std::vector<std::string> mergeGlossySplit(const Job& job, int n, const std::vect
         manifestInt(rep, "channels", 0) != channels)
       throw InputError(path, "shape does not match the job (orders, channels or dtype)");
     data.push_back(bytes.substr(offset));
-    st.rays += manifestInt(rep, "rays", uint64_t(0));
-    st.maxStdError = std::max(st.maxStdError, rep.value("standard_error_max", 0.0));
-    errSum += rep.value("standard_error_mean", 0.0) * double(rows);
-    st.verticesUnoccludable += manifestInt(rep, "vertices_unoccludable", size_t(0));
-    st.verticesWithoutNormal += manifestInt(rep, "vertices_without_normal", size_t(0));
-    st.degenerateTriangles = std::max(st.degenerateTriangles, manifestInt(rep, "degenerate_triangles", size_t(0)));
-    st.bvhNodes = std::max(st.bvhNodes, manifestInt(rep, "bvh_nodes", size_t(0)));
     st.bouncesUsed = std::max(st.bouncesUsed, manifestInt(rep, "bounces_used", 0));
-    if (st.device.empty()) st.device = rep.value("device", "");
-    const json& t = rep["timings"];
-    st.diffuseSeconds += t.value("diffuse_seconds", 0.0);
-    st.kernelSeconds += t.value("kernel_seconds", 0.0);
-    st.totalSeconds += t.value("total_seconds", 0.0);
+    st.diffuseSeconds += rep["timings"].value("diffuse_seconds", 0.0);
+    addShardReport(st, rep, &errSum);
   }
   st.meanStdError = vertices ? errSum / double(vertices) : 0;
-  const Mesh mesh = loadMesh(job.input);
-  if (mesh.vertexCount() != vertices)
-    throw InputError(job.input, "has " + std::to_string(mesh.vertexCount()) + " vertices, the shards saw " +
-                                    std::to_string(vertices));
-  // The old manifest goes first, so it never vouches for a mixed set; the new one last.
-  if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
-    throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
+  const Mesh mesh = loadMergedMesh(job, vertices);
+  removeOldManifest(job);
   AtomicFile npy(job.outputs.front().path);
   npy.write(glossyNpyHeader(glossyNpyShape(vertices, channels, o.orderOut, o.orderIn), dtype));
   for (const std::string& d : data) npy.write(d);
@@ -311,10 +296,7 @@ std::vector<std::string> mergeGlossySplit(const Job& job, int n, const std::vect
   report["shards"] = n;
   writeExtras(job, paths, mesh, o, st, values, report);
   npy.commit();
-  std::vector<InputHash> inputs;
-  for (const auto& in : manifests[0]["inputs"]) inputs.push_back({in.value("path", std::string()), in.value("sha256", std::string())});
-  const json manifest = makeManifest(job, inputs, st.device, {{"shard_total_seconds", st.totalSeconds}}, report);
-  writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
+  writeMergedManifest(job, manifests[0], st.device, st.totalSeconds, report);
   *info = {{"vertices", vertices}};
   return {};
 }

@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <unistd.h>
 
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -142,6 +143,28 @@ std::vector<float> readPartialNpy(const std::string& path, size_t* vertices, siz
   *vertices = size_t(v);
   *columns = size_t(c);
   return out;
+}
+
+Mesh loadMergedMesh(const Job& job, size_t vertices) {
+  Mesh mesh = loadMesh(job.input);
+  if (mesh.vertexCount() != vertices)
+    throw InputError(job.input, "has " + std::to_string(mesh.vertexCount()) + " vertices, the shards saw " +
+                                    std::to_string(vertices));
+  return mesh;
+}
+
+void removeOldManifest(const Job& job) {
+  if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
+    throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
+}
+
+void writeMergedManifest(const Job& job, const json& shardManifest, const std::string& device, double shardSeconds,
+                         const json& report) {
+  std::vector<InputHash> inputs;
+  for (const auto& in : shardManifest["inputs"])
+    inputs.push_back({in.value("path", std::string()), in.value("sha256", std::string())});
+  const json manifest = makeManifest(job, inputs, device, {{"shard_total_seconds", shardSeconds}}, report);
+  writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
 }
 
 }  // namespace prtbake::jobs

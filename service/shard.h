@@ -14,10 +14,12 @@
 // (removed when the job later succeeds), so that merge can name failed shards.
 #pragma once
 
+#include <algorithm>
 #include <string>
 #include <utility>
 
 #include "jobs.h"
+#include "manifest.h"
 
 namespace prtbake::jobs {
 
@@ -53,5 +55,39 @@ Job partialJob(const Job& job, ShardSpec s);
 
 // Reads a partial result written by the partial job: float32 [vertices, n²].
 std::vector<float> readPartialNpy(const std::string& path, size_t* vertices, size_t* columns);
+
+// Merging: what the split products (transport, glossy) do alike.
+
+// Adds one shard's report to the merged statistics (TransportResult or GlossyStats: the
+// fields they share): rays, vertex counts and kernel and total seconds summed, the largest
+// standard error, BVH and degenerate counts the most of any shard (each shard builds the
+// whole mesh's BVH), the first device; the mean standard error is accumulated, weighted by
+// the shard's vertices, into *errorSum (divide by all the vertices at the end).
+template <class Stats>
+void addShardReport(Stats& s, const json& report, double* errorSum) {
+  s.rays += manifestInt(report, "rays", uint64_t(0));
+  s.verticesUnoccludable += manifestInt(report, "vertices_unoccludable", size_t(0));
+  s.verticesWithoutNormal += manifestInt(report, "vertices_without_normal", size_t(0));
+  s.maxStdError = std::max(s.maxStdError, report.value("standard_error_max", 0.0));
+  *errorSum += report.value("standard_error_mean", 0.0) * double(manifestInt(report, "vertex_count", size_t(0)));
+  s.bvhNodes = std::max(s.bvhNodes, manifestInt(report, "bvh_nodes", size_t(0)));
+  s.degenerateTriangles = std::max(s.degenerateTriangles, manifestInt(report, "degenerate_triangles", size_t(0)));
+  if (s.device.empty()) s.device = report.value("device", "");
+  const json& t = report["timings"];
+  s.kernelSeconds += t.value("kernel_seconds", 0.0);
+  s.totalSeconds += t.value("total_seconds", 0.0);
+}
+
+// The job's mesh, which must have the `vertices` vertices the shards saw (InputError).
+Mesh loadMergedMesh(const Job& job, size_t vertices);
+
+// Removes the job's old manifest before the merged outputs are written, so that it never
+// vouches for a mixed set (OutputError when it cannot).
+void removeOldManifest(const Job& job);
+
+// Writes the merged job's manifest last: the inputs the shards hashed (`shardManifest`'s),
+// the device, the shards' summed seconds and the report.
+void writeMergedManifest(const Job& job, const json& shardManifest, const std::string& device, double shardSeconds,
+                         const json& report);
 
 }  // namespace prtbake::jobs

@@ -152,6 +152,44 @@ std::string detail::envProjectOptions(int order, int vectorWidth, EnvStorage sto
 
 namespace {
 
+// Cube face bases (u, v, n of each face) rotated by `yaw` radians about +Y.
+std::vector<float> rotatedFaceBases(const EnvMap& env, double yaw) {
+  std::vector<float> table;
+  const double cy = std::cos(yaw), sy = std::sin(yaw);
+  for (const auto& f : env.faces)
+    for (const auto* a : {&f.axisU, &f.axisV, &f.axisN}) {
+      const auto& v = *a;
+      table.insert(table.end(), {float(cy * v[0] + sy * v[2]), float(v[1]), float(-sy * v[0] + cy * v[2])});
+    }
+  return table;
+}
+
+// The lat-long kernel's column table: sin λ of every column, then cos λ (λ with the yaw).
+std::vector<float> latLongColumns(int w, double yaw) {
+  std::vector<float> table(2 * size_t(w));
+  for (int c = 0; c < w; ++c) {
+    const double lambda = -2.0 * kPi * ((c + 0.5) / w - 0.5) + yaw;
+    table[size_t(c)] = float(std::sin(lambda));
+    table[size_t(w + c)] = float(std::cos(lambda));
+  }
+  return table;
+}
+
+// The lat-long kernel's row table for rows firstRow..firstRow+h-1 of a map fullHeight rows
+// high: sin φ, cos φ and the solid angle of one texel of the row.
+std::vector<float> latLongRows(int w, int h, int firstRow, int fullHeight) {
+  std::vector<float> table(3 * size_t(h));
+  for (int i = 0; i < h; ++i) {
+    const int r = firstRow + i;
+    const double phi = kPi * (0.5 - (r + 0.5) / fullHeight);
+    const double top = kPi * (0.5 - double(r) / fullHeight), bottom = kPi * (0.5 - double(r + 1) / fullHeight);
+    table[3 * size_t(i)] = float(std::sin(phi));
+    table[3 * size_t(i) + 1] = float(std::cos(phi));
+    table[3 * size_t(i) + 2] = float((2.0 * kPi / w) * (std::sin(top) - std::sin(bottom)));
+  }
+  return table;
+}
+
 // Adds the radiance of env's texels to `radiance`, row partial sums in row order. A lat-long
 // `env` may hold a band of rows only: rows firstRow.. of a map fullHeight rows high.
 void addProjection(Runtime& rt, const EnvMap& env, int firstRow, int fullHeight, const EnvProjectOptions& options,
@@ -191,13 +229,7 @@ void addProjection(Runtime& rt, const EnvMap& env, int firstRow, int fullHeight,
   if (cube) {
     const int n = env.width;
     solidAngles = cubeSolidAngleTable(n);
-    // Face bases rotated by yaw about +Y.
-    const double cy = std::cos(yaw), sy = std::sin(yaw);
-    for (const auto& f : env.faces)
-      for (const auto* a : {&f.axisU, &f.axisV, &f.axisN}) {
-        const auto& v = *a;
-        table2.insert(table2.end(), {float(cy * v[0] + sy * v[2]), float(v[1]), float(-sy * v[0] + cy * v[2])});
-      }
+    table2 = rotatedFaceBases(env, yaw);
     buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | hostFlags, solidAngles->size() * 4,
                       const_cast<float*>(solidAngles->data()));
     buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
@@ -209,22 +241,9 @@ void addProjection(Runtime& rt, const EnvMap& env, int firstRow, int fullHeight,
     kernel.setArg(arg++, n);
     kernel.setArg(arg++, partials);
   } else {
-    const int w = env.width, h = env.height, fullH = fullHeight;
-    table1.resize(2 * size_t(w));
-    for (int c = 0; c < w; ++c) {
-      const double lambda = -2.0 * kPi * ((c + 0.5) / w - 0.5) + yaw;
-      table1[size_t(c)] = float(std::sin(lambda));
-      table1[size_t(w + c)] = float(std::cos(lambda));
-    }
-    table2.resize(3 * size_t(h));
-    for (int i = 0; i < h; ++i) {
-      const int r = firstRow + i;
-      const double phi = kPi * (0.5 - (r + 0.5) / fullH);
-      const double top = kPi * (0.5 - double(r) / fullH), bottom = kPi * (0.5 - double(r + 1) / fullH);
-      table2[3 * size_t(i)] = float(std::sin(phi));
-      table2[3 * size_t(i) + 1] = float(std::cos(phi));
-      table2[3 * size_t(i) + 2] = float((2.0 * kPi / w) * (std::sin(top) - std::sin(bottom)));
-    }
+    const int w = env.width, h = env.height;
+    table1 = latLongColumns(w, yaw);
+    table2 = latLongRows(w, h, firstRow, fullHeight);
     buf1 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table1.size() * 4, table1.data());
     buf2 = cl::Buffer(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table2.size() * 4, table2.data());
     kernel.setArg(0, rgb);

@@ -60,24 +60,14 @@ struct Builder {
   int depth = 0;
   int threads = 1;
 
-  int build(size_t begin, size_t end, int level) {
-    depth = std::max(depth, level);
-    const int index = int(nodes.size());
-    nodes.emplace_back();
-    Box bounds, cbounds;
-    for (size_t i = begin; i < end; ++i) bounds.grow(prims[i].box), cbounds.grow(prims[i].centroid);
-    auto makeLeaf = [&]() {
-      Bvh::Node& n = nodes[index];
-      for (int c = 0; c < 3; ++c) n.bmin[c] = bounds.lo[c], n.bmax[c] = bounds.hi[c];
-      n.offset = int32_t(begin);
-      n.count = int32_t(end - begin);
-      return index;
-    };
-    const size_t count = end - begin;
-    if (count <= 1 || level >= kBvhMaxDepth) return makeLeaf();
-    // Binned SAH, all three axes binned in one pass over the range.
-    double bestCost = INFINITY;
-    int bestAxis = -1, bestSplit = 0;
+  struct Split {
+    double cost = INFINITY;
+    int axis = -1, bin = 0;  // axis -1: no split (all centroids coincide)
+  };
+
+  // Binned SAH, all three axes binned in one pass over the range.
+  Split bestSplit(size_t begin, size_t end, const Box& cbounds) const {
+    Split best;
     Box binBox[3][kBvhBins];
     size_t binCount[3][kBvhBins] = {};
     double scale[3];
@@ -112,47 +102,71 @@ struct Builder {
         // A split after an empty bin costs what the split before it did (kept: the first wins).
         if (leftCount == 0 || rightCount[b + 1] == 0 || (b > 0 && binCount[axis][b] == 0)) continue;
         const double cost = left.area() * blocks(leftCount) + rightArea[b + 1] * blocks(rightCount[b + 1]);
-        if (cost < bestCost) bestCost = cost, bestAxis = axis, bestSplit = b;
+        if (cost < best.cost) best = {cost, axis, b};
       }
     }
+    return best;
+  }
+
+  // The two halves on two threads, each into its own list, then appended in depth-first
+  // order with their inner nodes' right-child indices moved: the same tree as one thread
+  // builds. Returns the right child's index.
+  int buildHalvesInParallel(size_t begin, size_t mid, size_t end, int level) {
+    std::vector<Bvh::Node> leftNodes, rightNodes;
+    Builder left{prims, leftNodes}, rightHalf{prims, rightNodes};
+    auto leftDone = std::async(std::launch::async, [&] { left.build(begin, mid, level + 1); });
+    rightHalf.build(mid, end, level + 1);  // should it throw, leftDone's destructor waits
+    leftDone.get();
+    depth = std::max({depth, left.depth, rightHalf.depth});
+    const int leftAt = int(nodes.size());
+    const int right = leftAt + int(leftNodes.size());
+    for (const auto& [part, at] : {std::pair{&leftNodes, leftAt}, std::pair{&rightNodes, right}})
+      for (Bvh::Node n : *part) {
+        if (n.count <= 0) n.offset += at;
+        nodes.push_back(n);
+      }
+    return right;
+  }
+
+  int build(size_t begin, size_t end, int level) {
+    depth = std::max(depth, level);
+    const int index = int(nodes.size());
+    nodes.emplace_back();
+    Box bounds, cbounds;
+    for (size_t i = begin; i < end; ++i) bounds.grow(prims[i].box), cbounds.grow(prims[i].centroid);
+    auto makeLeaf = [&]() {
+      Bvh::Node& n = nodes[index];
+      for (int c = 0; c < 3; ++c) n.bmin[c] = bounds.lo[c], n.bmax[c] = bounds.hi[c];
+      n.offset = int32_t(begin);
+      n.count = int32_t(end - begin);
+      return index;
+    };
+    const size_t count = end - begin;
+    if (count <= 1 || level >= kBvhMaxDepth) return makeLeaf();
+    const Split best = bestSplit(begin, end, cbounds);
     // Leaf when splitting is not cheaper (traversal cost 1, intersection cost 1 per block of
     // kBvhBlock triangles, which the single-ray kernels test at once).
     const double leafCost = bounds.area() * blocks(count);
     size_t mid;
-    int splitAxis = bestAxis;
-    if (bestAxis < 0) {
+    int splitAxis = best.axis;
+    if (best.axis < 0) {
       if (count <= size_t(kBvhMaxLeaf)) return makeLeaf();
       mid = begin + count / 2;  // all centroids coincide: split by index
       const float ext[3] = {bounds.hi[0] - bounds.lo[0], bounds.hi[1] - bounds.lo[1], bounds.hi[2] - bounds.lo[2]};
       splitAxis = ext[0] >= ext[1] && ext[0] >= ext[2] ? 0 : (ext[1] >= ext[2] ? 1 : 2);
     } else {
-      if (count <= size_t(kBvhMaxLeaf) && bestCost + bounds.area() >= leafCost) return makeLeaf();
-      const float lo = cbounds.lo[bestAxis];
-      const double scale = kBvhBins / double(cbounds.hi[bestAxis] - lo);
+      if (count <= size_t(kBvhMaxLeaf) && best.cost + bounds.area() >= leafCost) return makeLeaf();
+      const float lo = cbounds.lo[best.axis];
+      const double scale = kBvhBins / double(cbounds.hi[best.axis] - lo);
       auto it = std::partition(prims.begin() + begin, prims.begin() + end, [&](const Prim& p) {
-        return std::min(kBvhBins - 1, int((p.centroid[bestAxis] - lo) * scale)) <= bestSplit;
+        return std::min(kBvhBins - 1, int((p.centroid[best.axis] - lo) * scale)) <= best.bin;
       });
       mid = size_t(it - prims.begin());
       if (mid == begin || mid == end) mid = begin + count / 2;
     }
     int right;
     if (level == 0 && count >= kParallelBuild && threads > 1) {
-      // The two halves on two threads, each into its own list, then appended in
-      // depth-first order with their inner nodes' right-child indices moved: the same
-      // tree as one thread builds.
-      std::vector<Bvh::Node> leftNodes, rightNodes;
-      Builder left{prims, leftNodes}, rightHalf{prims, rightNodes};
-      auto leftDone = std::async(std::launch::async, [&] { left.build(begin, mid, level + 1); });
-      rightHalf.build(mid, end, level + 1);  // should it throw, leftDone's destructor waits
-      leftDone.get();
-      depth = std::max({depth, left.depth, rightHalf.depth});
-      const int leftAt = int(nodes.size());
-      right = leftAt + int(leftNodes.size());
-      for (const auto& [part, at] : {std::pair{&leftNodes, leftAt}, std::pair{&rightNodes, right}})
-        for (Bvh::Node n : *part) {
-          if (n.count <= 0) n.offset += at;
-          nodes.push_back(n);
-        }
+      right = buildHalvesInParallel(begin, mid, end, level);
     } else {
       build(begin, mid, level + 1);
       right = build(mid, end, level + 1);
@@ -205,10 +219,9 @@ int collapse(const std::vector<Bvh::Node>& nodes, int index, std::vector<Bvh::Wi
   return at;
 }
 
-}  // namespace
-
-Bvh buildBvh(const Mesh& mesh) {
-  Bvh bvh;
+// One primitive (box, centroid, triangle) for every triangle that can be hit; triangles of
+// zero area in the float arithmetic the kernel uses are counted in *degenerate instead.
+std::vector<Prim> primitives(const Mesh& mesh, size_t* degenerate) {
   std::vector<Prim> prims;
   prims.reserve(mesh.triangleCount());
   const float* p = mesh.positions.data();
@@ -221,7 +234,7 @@ Bvh buildBvh(const Mesh& mesh) {
     const float cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
                 cz = e1[0] * e2[1] - e1[1] * e2[0];
     if (cx == 0 && cy == 0 && cz == 0) {
-      ++bvh.degenerateTriangles;
+      ++*degenerate;
       continue;
     }
     Prim pr;
@@ -230,26 +243,12 @@ Bvh buildBvh(const Mesh& mesh) {
     pr.tri = uint32_t(t);
     prims.push_back(pr);
   }
-  if (prims.empty()) return bvh;
-  bvh.nodes.reserve(2 * prims.size() / kBvhMaxLeaf + 2);
-  Builder b{prims, bvh.nodes};
-  b.threads = detail::hostThreads();
-  b.build(0, prims.size(), 0);
-  bvh.depth = b.depth;
-  // The wide tree; a root that is a leaf becomes one wide node with that leaf in slot 0.
-  if (bvh.nodes[0].count > 0) {
-    Bvh::WideNode w{};
-    for (int k = 0; k < 4; ++k) {
-      for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
-      w.child[k] = 0, w.count[k] = -1;
-    }
-    for (int c = 0; c < 3; ++c) w.bmin[c][0] = bvh.nodes[0].bmin[c], w.bmax[c][0] = bvh.nodes[0].bmax[c];
-    w.child[0] = bvh.nodes[0].offset, w.count[0] = bvh.nodes[0].count;
-    bvh.wide.push_back(w);
-  } else {
-    bvh.wide.reserve(bvh.nodes.size() / 3 + 1);
-    collapse(bvh.nodes, 0, bvh.wide);
-  }
+  return prims;
+}
+
+// The triangles in the tree's order: their indices, and each as v0, id, e1, e2 (12 floats).
+void packTriangles(const Mesh& mesh, const std::vector<Prim>& prims, Bvh& bvh) {
+  const float* p = mesh.positions.data();
   bvh.triangles.resize(prims.size());
   bvh.packed.resize(prims.size() * 12);
   for (size_t i = 0; i < prims.size(); ++i) {
@@ -265,6 +264,10 @@ Bvh buildBvh(const Mesh& mesh) {
     for (int c = 0; c < 3; ++c) o[4 + c] = v1[c] - v0[c], o[8 + c] = v2[c] - v0[c];
     o[7] = o[11] = 0.0f;
   }
+}
+
+// The wide tree's leaves in blocks (see below), from bvh.packed and bvh.wide.
+void packBlocks(Bvh& bvh) {
   // The wide tree's leaves in blocks, in the order the wide nodes reference them (a node's
   // leaves side by side); each leaf slot's child becomes its first block, and each inner
   // slot's count −2 − the first block of that child's leaves (block 0 if it has none).
@@ -296,7 +299,35 @@ Bvh buildBvh(const Mesh& mesh) {
   for (Bvh::WideNode& w : bvh.wide)
     for (int k = 0; k < 4; ++k)
       if (w.count[k] == 0) w.count[k] = -2 - firstBlock[size_t(w.child[k])];
-  return bvh;
 }
 
+}  // namespace
+
+Bvh buildBvh(const Mesh& mesh) {
+  Bvh bvh;
+  std::vector<Prim> prims = primitives(mesh, &bvh.degenerateTriangles);
+  if (prims.empty()) return bvh;
+  bvh.nodes.reserve(2 * prims.size() / kBvhMaxLeaf + 2);
+  Builder b{prims, bvh.nodes};
+  b.threads = detail::hostThreads();
+  b.build(0, prims.size(), 0);
+  bvh.depth = b.depth;
+  // The wide tree; a root that is a leaf becomes one wide node with that leaf in slot 0.
+  if (bvh.nodes[0].count > 0) {
+    Bvh::WideNode w{};
+    for (int k = 0; k < 4; ++k) {
+      for (int c = 0; c < 3; ++c) w.bmin[c][k] = 1e30f, w.bmax[c][k] = -1e30f;
+      w.child[k] = 0, w.count[k] = -1;
+    }
+    for (int c = 0; c < 3; ++c) w.bmin[c][0] = bvh.nodes[0].bmin[c], w.bmax[c][0] = bvh.nodes[0].bmax[c];
+    w.child[0] = bvh.nodes[0].offset, w.count[0] = bvh.nodes[0].count;
+    bvh.wide.push_back(w);
+  } else {
+    bvh.wide.reserve(bvh.nodes.size() / 3 + 1);
+    collapse(bvh.nodes, 0, bvh.wide);
+  }
+  packTriangles(mesh, prims, bvh);
+  packBlocks(bvh);
+  return bvh;
+}
 }  // namespace prtbake

@@ -73,21 +73,9 @@ PrimitiveAttributes readAttributes(const tinygltf::Model& model, const tinygltf:
   return a;
 }
 
-void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, int primIndex, const Mat4& world,
-                  const std::string& path, Mesh& mesh) {
-  const auto& prim = model.meshes[meshIndex].primitives[primIndex];
-  const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
-  if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
-    return;
-  const std::string what = "mesh " + std::to_string(meshIndex) + " primitive " + std::to_string(primIndex);
-  const PrimitiveAttributes attrs = readAttributes(model, prim, path, what);
-  const std::vector<double>& p = attrs.position;
-  const std::vector<double>& n = attrs.normal;
-  const std::vector<double>& col = attrs.color;
-  const size_t nv = attrs.vertexCount;
-  // glTF 2.0 requires unit normals; a file that breaks this is refused rather than
-  // silently repaired (kNormalLengthTol: looser than float rounding, as the glTF
-  // validator's own check).
+// glTF 2.0 requires unit normals; a file that breaks this is refused rather than silently
+// repaired (kNormalLengthTol: looser than float rounding, as the glTF validator's own check).
+void checkUnitNormals(const std::vector<double>& n, const std::string& path, const std::string& what) {
   constexpr double kNormalLengthTol = 1e-2;
   for (size_t v = 0; v < n.size() / 3; ++v) {
     const double len = std::sqrt(n[3 * v] * n[3 * v] + n[3 * v + 1] * n[3 * v + 1] + n[3 * v + 2] * n[3 * v + 2]);
@@ -95,36 +83,49 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
       throw InputError(path, what + " NORMAL: vertex " + std::to_string(v) + " has length " + std::to_string(len) +
                                  " (glTF 2.0 requires unit normals)");
   }
-  std::array<double, 3> base{1, 1, 1};
+}
+
+// The primitive's material's base colour factor (white without one).
+std::array<double, 3> baseColor(const tinygltf::Model& model, const tinygltf::Primitive& prim) {
   if (prim.material >= 0 && prim.material < int(model.materials.size())) {
     const auto& f = model.materials[prim.material].pbrMetallicRoughness.baseColorFactor;
-    if (f.size() >= 3) base = {f[0], f[1], f[2]};
+    if (f.size() >= 3) return {f[0], f[1], f[2]};
   }
-  // Corner list of the primitive (indexed or not), before strip/fan conversion.
+  return {1, 1, 1};
+}
+
+// The primitive's corner list (indexed or not), before strip and fan conversion.
+std::vector<uint32_t> readCorners(const tinygltf::Model& model, const tinygltf::Primitive& prim, size_t nv,
+                                  const std::string& path, const std::string& what) {
   std::vector<uint32_t> corners;
-  if (prim.indices >= 0) {
-    // glTF 2.0: indices are scalar unsigned bytes, shorts or ints, not normalised; so every
-    // value read below is a whole number ≥ 0 (a float accessor could hold NaN).
-    if (prim.indices < int(model.accessors.size())) {
-      const auto& acc = model.accessors[size_t(prim.indices)];
-      if ((acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
-           acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-           acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) ||
-          acc.type != TINYGLTF_TYPE_SCALAR || acc.normalized)
-        throw InputError(path, what + " indices: accessor " + std::to_string(prim.indices) +
-                                   " must hold unnormalised scalar unsigned integers (glTF 2.0)");
-    }
-    const std::vector<double> idx = detail::readAccessor(model, prim.indices, 1, path, what + " indices");
-    corners.reserve(idx.size());
-    for (double v : idx) {
-      if (v >= double(nv))
-        throw InputError(path, what + ": index " + std::to_string(uint64_t(v)) + " is out of range (" +
-                                   std::to_string(nv) + " vertices)");
-      corners.push_back(uint32_t(v));
-    }
-  } else {
+  if (prim.indices < 0) {
     for (size_t i = 0; i < nv; ++i) corners.push_back(uint32_t(i));
+    return corners;
   }
+  // glTF 2.0: indices are scalar unsigned bytes, shorts or ints, not normalised; so every
+  // value read below is a whole number ≥ 0 (a float accessor could hold NaN).
+  if (prim.indices < int(model.accessors.size())) {
+    const auto& acc = model.accessors[size_t(prim.indices)];
+    if ((acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+         acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+         acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) ||
+        acc.type != TINYGLTF_TYPE_SCALAR || acc.normalized)
+      throw InputError(path, what + " indices: accessor " + std::to_string(prim.indices) +
+                                 " must hold unnormalised scalar unsigned integers (glTF 2.0)");
+  }
+  const std::vector<double> idx = detail::readAccessor(model, prim.indices, 1, path, what + " indices");
+  corners.reserve(idx.size());
+  for (double v : idx) {
+    if (v >= double(nv))
+      throw InputError(path, what + ": index " + std::to_string(uint64_t(v)) + " is out of range (" +
+                                 std::to_string(nv) + " vertices)");
+    corners.push_back(uint32_t(v));
+  }
+  return corners;
+}
+
+// Triangles (three corners each) of a list, strip or fan.
+std::vector<uint32_t> triangulate(int mode, const std::vector<uint32_t>& corners) {
   std::vector<uint32_t> tris;
   if (mode == TINYGLTF_MODE_TRIANGLES) {
     for (size_t i = 0; i + 2 < corners.size(); i += 3) tris.insert(tris.end(), {corners[i], corners[i + 1], corners[i + 2]});
@@ -140,8 +141,17 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
     // glTF: triangle i = (i+1, i+2, 0).
     for (size_t i = 0; i + 2 < corners.size(); ++i) tris.insert(tris.end(), {corners[i + 1], corners[i + 2], corners[0]});
   }
-  // World transform; normals by the inverse transpose of the upper 3×3; a mirroring
-  // transform (negative determinant) flips the winding.
+  return tris;
+}
+
+// Appends the primitive's vertices in world space: positions by `world`, normals by the
+// inverse transpose of its upper 3×3, albedo = base colour × COLOR_0. Returns whether the
+// transform mirrors (negative determinant: the winding must flip).
+bool appendVertices(const PrimitiveAttributes& attrs, const Mat4& world, const std::array<double, 3>& base,
+                    Mesh& mesh) {
+  const std::vector<double>& p = attrs.position;
+  const std::vector<double>& n = attrs.normal;
+  const std::vector<double>& col = attrs.color;
   const double* m = world.data();
   const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], k = m[10];
   const double det = a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g);
@@ -150,8 +160,7 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
                          -(b * k - c * h), a * k - c * g, -(a * h - b * g),
                          b * f - c * e, -(a * f - c * d), a * e - b * d};
   const double sgn = det < 0 ? -1.0 : 1.0;
-  const uint32_t first = uint32_t(mesh.vertexCount());
-  for (size_t i = 0; i < nv; ++i) {
+  for (size_t i = 0; i < attrs.vertexCount; ++i) {
     const double x = p[3 * i], y = p[3 * i + 1], z = p[3 * i + 2];
     mesh.positions.push_back(float(m[0] * x + m[4] * y + m[8] * z + m[12]));
     mesh.positions.push_back(float(m[1] * x + m[5] * y + m[9] * z + m[13]));
@@ -172,13 +181,28 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
     for (double q : w) mesh.normals.push_back(float(q));
     for (int ch = 0; ch < 3; ++ch) mesh.albedo.push_back(float(base[ch] * (col.empty() ? 1.0 : col[3 * i + ch])));
   }
+  return det < 0;
+}
+
+void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, int primIndex, const Mat4& world,
+                  const std::string& path, Mesh& mesh) {
+  const auto& prim = model.meshes[meshIndex].primitives[primIndex];
+  const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+  if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+    return;
+  const std::string what = "mesh " + std::to_string(meshIndex) + " primitive " + std::to_string(primIndex);
+  const PrimitiveAttributes attrs = readAttributes(model, prim, path, what);
+  checkUnitNormals(attrs.normal, path, what);
+  const std::vector<uint32_t> tris = triangulate(mode, readCorners(model, prim, attrs.vertexCount, path, what));
+  const uint32_t first = uint32_t(mesh.vertexCount());
+  const bool mirrored = appendVertices(attrs, world, baseColor(model, prim), mesh);
   for (size_t t = 0; t + 2 < tris.size(); t += 3) {
-    if (det < 0)
+    if (mirrored)
       mesh.indices.insert(mesh.indices.end(), {first + tris[t], first + tris[t + 2], first + tris[t + 1]});
     else
       mesh.indices.insert(mesh.indices.end(), {first + tris[t], first + tris[t + 1], first + tris[t + 2]});
   }
-  mesh.gltfPrimitives.push_back({nodeIndex, meshIndex, primIndex, first, uint32_t(nv)});
+  mesh.gltfPrimitives.push_back({nodeIndex, meshIndex, primIndex, first, uint32_t(attrs.vertexCount)});
 }
 
 }  // namespace
