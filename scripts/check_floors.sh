@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The library's floors (docs/architecture.md): every quoted #include of host/src and
-# host/include/prtbake, and of service/, read as an edge between folders, must point to the
+# host/include/prtbake, of service/ and of python/, read as an edge between folders, must point to the
 # same floor or a lower one, and the folders' graph must have no cycle. Prints each
 # offending include; exit 1 when there is one.
 #   floor 0 core      1 io      2 geometry      3 env lut prefilter transport glossy
-#   floor 4 ibl preview      5 service
+#   floor 4 ibl preview      5 service      6 python (the Python module)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # The public headers' folders (host/include/prtbake/NAME.h).
@@ -23,7 +23,7 @@ floor() {
   case "$1" in
     core) echo 0 ;; io) echo 1 ;; geometry) echo 2 ;;
     env|lut|prefilter|transport|glossy) echo 3 ;;
-    ibl|preview) echo 4 ;; service) echo 5 ;; kernels) echo 0 ;;
+    ibl|preview) echo 4 ;; service) echo 5 ;; python) echo 6 ;; kernels) echo 0 ;;
     *) echo 99 ;;
   esac
 }
@@ -32,6 +32,7 @@ folder_of_file() {  # a source file's folder
     host/src/*/*) f=${1#host/src/}; echo "${f%%/*}" ;;
     host/include/prtbake/*) n=$(basename "$1" .h); public_folder "$n" ;;
     service/*) echo service ;;
+    python/*) echo python ;;
     *) echo "?" ;;
   esac
 }
@@ -59,7 +60,7 @@ while IFS= read -r file; do
     fi
     [ "$to" = "$from" ] || [ "$to" = kernels ] || echo "$from $to" >>"$edges"
   done < <(sed -n 's/^#include "\([^"]*\)".*/\1/p' "$file")
-done < <(find host/src host/include/prtbake service -name '*.cpp' -o -name '*.h' | sort)
+done < <(find host/src host/include/prtbake service python -name '*.cpp' -o -name '*.h' | sort)
 # No cycle among folders: tsort reports one.
 if ! sort -u "$edges" | tsort >/dev/null 2>"$edges.err"; then
   echo "floors: the folders include each other in a cycle:" >&2

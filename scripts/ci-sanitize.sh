@@ -21,7 +21,7 @@ build=${PRTBAKE_SANITIZE_BUILD_DIR:-$root/build-sanitize}
 jobs=${JOBS:-$(nproc)}
 start=$(date +%s)
 
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRTBAKE_SANITIZE=ON -DPRTBAKE_BUILD_BENCH=OFF \
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRTBAKE_SANITIZE=ON -DPRTBAKE_BUILD_BENCH=OFF -DPRTBAKE_PYTHON=OFF \
   ${PRTBAKE_CMAKE_ARGS:-} >/dev/null
 cmake --build "$build" -j"$jobs" --target prtbake_cli test_env_load test_env_files test_jobs test_corpus test_fuzz_replay
 

@@ -27,7 +27,7 @@ done
 # shellcheck disable=SC2086
 install_missing $PRTBAKE_BUILD_PKGS clang libclang-rt-14-dev
 build=${PRTBAKE_FUZZ_BUILD_DIR:-$root/build-fuzz}
-CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRTBAKE_FUZZ=ON \
+CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRTBAKE_FUZZ=ON -DPRTBAKE_PYTHON=OFF \
   -DPRTBAKE_BUILD_BENCH=OFF -Wno-dev >/dev/null
 if [ ${#targets[@]} -eq 0 ]; then
   for f in tests/fuzz/fuzz_*.cpp; do t=$(basename "$f" .cpp); targets+=("${t#fuzz_}"); done

@@ -93,4 +93,24 @@ TEST_CASE("installed package: find_package(prtbake) builds and runs the pipeline
   for (size_t i = 0; i < 9; ++i)
     for (int ch = 0; ch < 3; ++ch)
       CHECK(c[i][ch].get<double>() == Approx(ref[i][ch].get<double>()).margin(kSameComputationTol * e00));
+
+  // The Python module, installed under the prefix into that Python's site-packages: imported
+  // from there alone (not the build tree), it projects the same file to the same coefficients.
+  if (std::string(PRTBAKE_PYTHON_INSTALL_DIR).empty()) {
+    WARN("the Python module is not built here: its installation is not checked");
+    return;
+  }
+  const std::string site = prefix + "/" + PRTBAKE_PYTHON_INSTALL_DIR;
+  CHECK(fileExists(site + "/prtbake/__init__.py"));
+  CHECK(fileExists(site + "/prtbake/__init__.pyi"));
+  const int imported = shell("cd '" + dir + "' && PYTHONPATH='" + site + "' PRTBAKE_DEVICE=cpu '" + PRTBAKE_PYTHON +
+                                 "' -c \"import json, prtbake; assert prtbake.__file__.startswith('" + site +
+                                 "'), prtbake.__file__; r = prtbake.env('white.exr', quantity='irradiance'); "
+                                 "json.dump(r.coeffs.tolist(), open('py.json', 'w'))\"",
+                             dir + "/python.log");
+  INFO(slurp(dir + "/python.log"));
+  REQUIRE(imported == 0);
+  const nlohmann::json py = readJson(dir + "/py.json");
+  for (size_t i = 0; i < 9; ++i)
+    for (int ch = 0; ch < 3; ++ch) CHECK(py[i][ch].get<double>() == ref[i][ch].get<double>());
 }

@@ -1,0 +1,87 @@
+// The library calls that bench/bench_python.py times through the Python module, made from C++:
+// the same inputs and options, so that the difference is the binding's cost.
+//
+//   bench_call lut|env|transport CALLS [MESH]
+//   bench_call peak 1 MESH: the peak resident memory (MiB) before and after one computeTransport
+//   of MESH at order 8, 64 samples (bench_python.py compares the module's with it).
+//   lut: computeLut, 16², 64 samples; env: projectEnvironment of a 64×32 lat-long of ones,
+//   order 3; transport: computeTransport of MESH, shadowed, 64 samples.
+// Prints one line: "<what> <calls> <median seconds per call> <min seconds per call>", each
+// call timed alone after 20 warm-up calls (program builds, first-touch pages).
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <sys/resource.h>
+#include <vector>
+
+#include "prtbake/clock.h"
+#include "prtbake/env.h"
+#include "prtbake/lut.h"
+#include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
+#include "prtbake/transport.h"
+
+using namespace prtbake;
+
+// The CPU device's runtime, made on first use (after the mesh is loaded, as the module's calls make it).
+static Runtime& rt0() {
+  static Runtime rt("cpu");
+  return rt;
+}
+
+int main(int argc, char** argv) {
+  if (argc < 3) {
+    std::fprintf(stderr, "usage: bench_call lut|env|transport CALLS [MESH]\n");
+    return 2;
+  }
+  const std::string what = argv[1];
+  const int calls = std::atoi(argv[2]);
+  if (what == "peak" && argc > 3) {
+    const Mesh mesh = loadMesh(argv[3]);
+    rusage before{}, after{};
+    getrusage(RUSAGE_SELF, &before);
+    TransportOptions o;
+    o.order = 8, o.samples = 64;
+    const TransportResult r = computeTransport(rt0(), mesh, o);
+    getrusage(RUSAGE_SELF, &after);
+    std::printf("%.1f %.1f %.1f\n", before.ru_maxrss / 1024.0, after.ru_maxrss / 1024.0, r.coeffs.size() * 4.0 / 1048576);
+    return 0;
+  }
+  if ((what != "lut" && what != "env" && what != "transport") || calls < 1) {
+    std::fprintf(stderr, "usage: bench_call lut|env|transport CALLS [MESH]\n");
+    return 2;
+  }
+  Runtime& rt = rt0();
+  Mesh mesh;
+  if (what == "transport") mesh = loadMesh(argc > 3 ? argv[3] : "assets/scene.gltf");
+  EnvMap env;
+  env.layout = EnvLayout::LatLong;
+  env.width = 64, env.height = 32;
+  env.rgb.assign(size_t(64) * 32 * 3, 1.0f);
+  auto once = [&]() {
+    if (what == "lut") {
+      LutOptions o;
+      o.size = 16, o.samples = 64;
+      computeLut(rt, o);
+    } else if (what == "env") {
+      EnvProjectOptions o;
+      projectEnvironment(rt, env, o);
+    } else {
+      TransportOptions o;
+      o.samples = 64;
+      computeTransport(rt, mesh, o);
+    }
+  };
+  for (int i = 0; i < 20; ++i) once();
+  std::vector<double> t;
+  for (int i = 0; i < calls; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    once();
+    t.push_back(secondsSince(t0));
+  }
+  std::sort(t.begin(), t.end());
+  std::printf("%s %d %.9f %.9f\n", what.c_str(), calls, t[t.size() / 2], t[0]);
+  return 0;
+}

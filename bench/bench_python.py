@@ -1,0 +1,126 @@
+"""The Python module's cost beside the library's, in one run: writes bench/results/python.md.
+
+1. Overhead: a binding call on a small input against the same library call from C++
+   (build/bench/bench_call): lut 16² at 64 samples, env of a 64×32 lat-long array, transport of
+   assets/scene.gltf (4,906 vertices) at 64 samples. ROUNDS rounds (default 5), each timing
+   CALLS calls (default 200) of every case in C++ then in Python, each call alone after 20
+   warm-up calls; the median per call of each round, then the median over rounds, and the
+   per-round ratio Python/C++.
+2. Memory: the knot of bench_embree.sh (102,400 vertices) → transport at order 8, 64 samples →
+   NumPy, in a fresh Python process (peak resident memory from getrusage, the mesh as arrays
+   and from the file), beside `prtbake transport` of the same mesh and options (/usr/bin/time).
+   The output is 102,400 × 64 float32 = 26.2 MB: a copy of it would add that much to the peak.
+
+    PYTHONPATH=build/python /usr/bin/python3 bench/bench_python.py [BUILD]
+"""
+import os
+import pathlib
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+BUILD = pathlib.Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "build"
+sys.path.insert(0, str(BUILD / "python"))
+os.environ.setdefault("PRTBAKE_DEVICE", "cpu")
+import numpy as np  # noqa: E402
+import prtbake  # noqa: E402
+
+ROUNDS = int(os.environ.get("ROUNDS", "5"))
+CALLS = int(os.environ.get("CALLS", "200"))
+SCENE = ROOT / "assets" / "scene.gltf"
+
+
+def python_call(what):
+    sky = np.ones((32, 64, 3), np.float32)
+    mesh = prtbake.Mesh.load(SCENE)
+    fn = {"lut": lambda: prtbake.lut(size=16, samples=64),
+          "env": lambda: prtbake.env(sky, order=3),
+          "transport": lambda: prtbake.transport(mesh, samples=64)}[what]
+    for _ in range(20):
+        fn()
+    t = []
+    for _ in range(CALLS):
+        t0 = time.perf_counter()
+        fn()
+        t.append(time.perf_counter() - t0)
+    return statistics.median(t)
+
+
+def cxx_call(what):
+    out = subprocess.run([str(BUILD / "bench" / "bench_call"), what, str(CALLS), str(SCENE)], cwd=ROOT,
+                         capture_output=True, text=True, check=True).stdout.split()
+    return float(out[2])
+
+
+def peak_mib(code):
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                       env=dict(os.environ, PYTHONPATH=str(BUILD / "python")))
+    return p.stdout.strip()
+
+
+def main():
+    rows = []
+    for what in ("lut", "env", "transport"):
+        c, p = [], []
+        for _ in range(ROUNDS):
+            c.append(cxx_call(what))
+            p.append(python_call(what))
+        ratios = [b / a for a, b in zip(c, p)]
+        rows.append((what, statistics.median(c), statistics.median(p), statistics.median(ratios), min(ratios),
+                     max(ratios)))
+    with tempfile.TemporaryDirectory() as work:
+        knot = pathlib.Path(work) / "knot.obj"
+        subprocess.run([str(BUILD / "bench" / "bench_embree"), "--write-knot", str(knot)], check=True)
+        measure = ("import resource, prtbake, numpy as np\n"
+                   "m = prtbake.Mesh.load(%r)\n"
+                   "{make}\n"
+                   "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+                   "t = prtbake.transport(m, order=8, samples=64)\n"
+                   "after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+                   "print('%%.1f %%.1f %%.1f' %% (before / 1024, after / 1024, t.coeffs.nbytes / 2**20))\n") % str(knot)
+        # Warm: the order-8 programs built and cached (PoCL's compiler would add ~135 MiB to the first run).
+        subprocess.run([str(BUILD / "prtbake"), "transport", str(knot), "-o", str(pathlib.Path(work) / "k.npy"),
+                        "--order", "8", "--samples", "64", "--quiet"], check=True)
+        cxx = subprocess.run([str(BUILD / "bench" / "bench_call"), "peak", "1", str(knot)], capture_output=True,
+                             text=True, check=True).stdout
+        from_file = peak_mib(measure.format(make="pass"))
+        from_arrays = peak_mib(measure.format(make="m = prtbake.Mesh(np.array(m.positions), np.array(m.indices), "
+                                                   "np.array(m.normals)); import gc; gc.collect()"))
+        cli = subprocess.run(["/usr/bin/time", "-f", "%M", str(BUILD / "prtbake"), "transport", str(knot), "-o",
+                              str(pathlib.Path(work) / "k.npy"), "--order", "8", "--samples", "64", "--quiet"],
+                             capture_output=True, text=True, check=True).stderr.strip().splitlines()[-1]
+    cpu = [l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")][0]
+    lines = ["# The Python module beside the library", "",
+             "bench/bench_python.py, %s, %d cores (%s), CPU device; %d rounds of %d calls each." % (
+                 time.strftime("%Y-%m-%d"), os.cpu_count(), cpu, ROUNDS, CALLS), "",
+             "## A call on a small input", "",
+             "| call | C++ library [ms] | Python module [ms] | Python / C++, median of rounds (min–max) |",
+             "|---|---|---|---|"]
+    for what, c, p, r, lo, hi in rows:
+        lines.append("| %s | %.3f | %.3f | %.3f (%.3f–%.3f) |" % (what, 1e3 * c, 1e3 * p, r, lo, hi))
+    b, a, out = from_file.split()
+    b2, a2, _ = from_arrays.split()
+    b3, a3, _ = cxx.split()
+    lines += ["", "lut: 16², 64 samples; env: a 64×32 lat-long array of ones, order 3 (the Python call converts",
+              "nothing: float32, C order); transport: assets/scene.gltf (4,906 vertices), shadowed, 64 samples (the",
+              "Python call takes the loaded prtbake.Mesh).", "",
+              "## Memory: mesh → transport → NumPy", "",
+              "The knot (102,400 vertices, 204,800 triangles), order 8, 64 samples: the output is %s MiB." % out, "",
+              "| path | peak before the call [MiB] | peak after [MiB] | rise [MiB] |", "|---|---|---|---|",
+              "| C++, computeTransport (bench_call peak) | %s | %s | %.1f |" % (b3, a3, float(a3) - float(b3)),
+              "| Python, prtbake.Mesh.load | %s | %s | %.1f |" % (b, a, float(a) - float(b)),
+              "| Python, prtbake.Mesh from NumPy arrays | %s | %s | %.1f |" % (b2, a2, float(a2) - float(b2)),
+              "| `prtbake transport` (whole command, writes the .npy) | | %.1f | |" % (int(cli) / 1024), "",
+              "The rise is what the call adds to the process's peak: the library's working memory and the",
+              "output. A copy of the output on its way to NumPy would make Python's rise exceed C++'s by the",
+              "output's size.", ""]
+    text = "\n".join(lines) + "\n"
+    (ROOT / "bench" / "results" / "python.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,347 @@
+"""The Python module against the command line of the same build: the same input gives the same
+arrays, to the byte; a mesh and an environment given as arrays give what their files give; the
+library's errors arrive as the matching Python exceptions with the library's message; no
+references or memory leak over 1,000 calls; two threads bake what one does alone.
+
+Every comparison is exact (np.array_equal on float32/float64, or bytes): the module calls the
+same library functions with the same options as the command, on the same device (cpu)."""
+import json
+import os
+import pathlib
+import resource
+import struct
+import subprocess
+import sys
+import threading
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from conftest import ASSETS, BUILD, CLI, ROOT, cli, data
+
+os.environ.setdefault("PRTBAKE_DEVICE", "cpu")
+sys.path.insert(0, str(BUILD / "python"))
+import prtbake  # noqa: E402
+
+SKY = ASSETS / "sky.exr"
+SCENE = ASSETS / "scene.gltf"
+
+
+def coefficients(path):
+    return np.array(json.loads(pathlib.Path(path).read_text())["coefficients"], dtype=np.float64)
+
+
+def make_grid_mesh(n=12):
+    """A bumpy height field: (n+1)² vertices, 2n² triangles, vertices in the order a file's faces first use them."""
+    x, z = np.meshgrid(np.linspace(-1, 1, n + 1), np.linspace(-1, 1, n + 1))
+    y = 0.3 * np.sin(3 * x) * np.cos(2 * z)
+    pos = np.stack([x, y, z], axis=-1).reshape(-1, 3).astype(np.float32)
+    tris = []
+    for r in range(n):
+        for c in range(n):
+            a, b, d, e = r * (n + 1) + c, r * (n + 1) + c + 1, (r + 1) * (n + 1) + c, (r + 1) * (n + 1) + c + 1
+            tris += [(a, d, b), (b, d, e)]
+    idx = np.array(tris, dtype=np.uint32)
+    # Renumbered in the order the faces first use the vertices, as an OBJ loader numbers them.
+    _, first = np.unique(idx.ravel(), return_index=True)
+    order = idx.ravel()[np.sort(first)]
+    renumber = np.empty(len(pos), np.uint32)
+    renumber[order] = np.arange(len(order), dtype=np.uint32)
+    return pos[order], renumber[idx]
+
+
+def write_obj(path, pos, idx):
+    with open(path, "w") as f:
+        for p in pos:
+            f.write("v %.9g %.9g %.9g\n" % tuple(float(v) for v in p))
+        for t in idx:
+            f.write("f %d %d %d\n" % tuple(int(v) + 1 for v in t))
+
+
+# --- each product against the command ---
+
+def test_env_file_matches_the_command(tmp_path):
+    for args, kw in [([], {}), (["--order", "5", "--window", "hann", "--quantity", "irradiance"],
+                                 dict(order=5, window="hann", quantity="irradiance")),
+                     (["--yaw", "30"], dict(yaw=30.0)), (["--order", "auto"], dict(order="auto"))]:
+        out = tmp_path / "e.json"
+        cli("env", SKY, "-o", out, *args)
+        r = prtbake.env(SKY, **kw)
+        assert r.coeffs.dtype == np.float64 and r.coeffs.shape == (r.order ** 2, 3)
+        assert np.array_equal(r.coeffs, coefficients(out)), args
+        assert r.order == json.loads(out.read_text())["order"]
+
+
+def write_hdr(path, codes):
+    """A flat (uncompressed) Radiance file of RGBE codes (H, W, 4) uint8; returns the radiance stb_image decodes."""
+    h, w, _ = codes.shape
+    with open(path, "wb") as f:
+        f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w))
+        f.write(codes.tobytes())
+    scale = np.ldexp(1.0, codes[..., 3].astype(np.int32) - 136).astype(np.float32)
+    return codes[..., :3].astype(np.float32) * scale[..., None]
+
+
+def test_env_array_matches_its_file(tmp_path):
+    rng = np.random.default_rng(7)
+    codes = rng.integers(16, 256, size=(32, 64, 4), dtype=np.uint8)
+    codes[..., 3] = rng.integers(126, 132, size=(32, 64), dtype=np.uint8)
+    radiance = write_hdr(tmp_path / "sky.hdr", codes)
+    from_file = prtbake.env(tmp_path / "sky.hdr", order=4)
+    from_array = prtbake.env(radiance, order=4)
+    assert np.array_equal(from_file.coeffs, from_array.coeffs)
+    assert from_array.layout == "latlong" and from_array.width == 64
+    # float64 input is converted once and gives the same coefficients
+    assert np.array_equal(prtbake.env(radiance.astype(np.float64), order=4).coeffs, from_file.coeffs)
+    # A cube of six faces of radiance 1: L_00 = ∫ Y_00 dω = 2√π, the rest 0 (within 1e-5: the
+    # float32 sums of the kernel, as the env product's own bound).
+    r = prtbake.env(np.ones((6, 8, 8, 3), np.float32), order=2)
+    assert r.layout == "faces" and r.coeffs.shape == (4, 3)
+    assert np.allclose(r.coeffs[0], 2 * np.sqrt(np.pi), rtol=1e-5) and np.abs(r.coeffs[1:]).max() < 1e-5
+
+
+def test_rotate_matches_the_command(tmp_path):
+    cli("env", SKY, "-o", tmp_path / "e.json", "--order", "4")
+    for args, kw in [(["--euler-zyz", "10,20,30"], dict(euler_zyz=(10, 20, 30))),
+                     (["--quat", "0.9,0.1,0.3,0.2", "--method", "projection"],
+                      dict(quat=(0.9, 0.1, 0.3, 0.2), method="projection"))]:
+        cli("rotate", tmp_path / "e.json", "-o", tmp_path / "r.json", *args)
+        got = prtbake.rotate(coefficients(tmp_path / "e.json"), **kw)
+        assert np.array_equal(got, coefficients(tmp_path / "r.json"))
+
+
+@pytest.mark.parametrize("mode", ["unshadowed", "shadowed", "interreflected"])
+def test_transport_matches_the_command(tmp_path, mode):
+    cli("transport", SCENE, "-o", tmp_path / "t.npy", "--mode", mode, "--samples", "128")
+    r = prtbake.transport(SCENE, mode=mode, samples=128)
+    expected = np.load(tmp_path / "t.npy")
+    assert r.coeffs.dtype == expected.dtype and r.coeffs.shape == expected.shape
+    assert r.coeffs.tobytes() == expected.tobytes()
+    assert r.coeffs.base is not None  # owns the library's vector, not a copy
+
+
+def test_mesh_from_arrays_matches_its_file(tmp_path):
+    pos, idx = make_grid_mesh()
+    write_obj(tmp_path / "grid.obj", pos, idx)
+    loaded = prtbake.Mesh.load(tmp_path / "grid.obj")
+    assert np.array_equal(loaded.positions, pos) and np.array_equal(loaded.indices, idx)
+    from_arrays = prtbake.Mesh(pos, idx)
+    assert np.array_equal(from_arrays.normals, loaded.normals)  # both filled the same way
+    a = prtbake.transport(tmp_path / "grid.obj", samples=256)
+    b = prtbake.transport(from_arrays, samples=256)
+    c = prtbake.transport(prtbake.Mesh(pos.astype(np.float64), idx.astype(np.int64)), samples=256)
+    assert a.coeffs.tobytes() == b.coeffs.tobytes() == c.coeffs.tobytes()
+    # a mesh's arrays are views of the mesh (no copy), kept alive by the array
+    p = prtbake.Mesh(pos, idx).positions
+    assert p.base is not None and np.array_equal(p, pos)
+
+
+def test_glossy_with_cpca_matches_the_command(tmp_path):
+    out = tmp_path / "g.npy"
+    cli("transport", SCENE, "--transfer", "matrix", "-o", out, "--samples", "64", "--cpca", "4,2",
+        "--brdf", "ggx:0.4")
+    r = prtbake.glossy(SCENE, samples=64, cpca_clusters=4, cpca_vectors=2, brdf="ggx", roughness=0.4)
+    assert r.matrices.tobytes() == np.load(out).tobytes()
+    npz = np.load(tmp_path / "g.cpca.npz")
+    assert set(["means", "basis"]) <= set(npz.files)
+    assert r.cpca["means"].tobytes() == npz["means"].tobytes()
+    h = prtbake.glossy(SCENE, samples=64, dtype="float16")
+    cli("transport", SCENE, "--transfer", "matrix", "-o", out, "--samples", "64", "--dtype", "float16")
+    assert h.matrices.dtype == np.float16 and h.matrices.tobytes() == np.load(out).tobytes()
+
+
+def test_lut_matches_the_command(tmp_path):
+    cli("lut", "-o", tmp_path / "l.exr", "--size", "32", "--samples", "256", "--multiscatter")
+    r = prtbake.lut(size=32, samples=256, multiscatter=True)
+    exr = prtbake.read_exr(tmp_path / "l.exr")
+    assert np.array_equal(exr["R"], r.a) and np.array_equal(exr["G"], r.b) and np.array_equal(exr["B"], r.third)
+
+
+def ktx2_levels(path):
+    """The level images of a KTX2 file as float32 RGBA arrays (RGBA32F files only), level 0 first."""
+    b = pathlib.Path(path).read_bytes()
+    count = struct.unpack_from("<I", b, 40)[0]
+    levels = []
+    for i in range(max(count, 1)):
+        offset, length, _ = struct.unpack_from("<QQQ", b, 80 + 24 * i)
+        levels.append(np.frombuffer(b[offset:offset + length], dtype=np.float32))
+    return levels
+
+
+def test_prefilter_matches_the_command(tmp_path):
+    cli("prefilter", SKY, "-o", tmp_path / "p.ktx2", "--size", "32", "--float32")
+    r = prtbake.prefilter(SKY, size=32)
+    files = ktx2_levels(tmp_path / "p.ktx2")
+    assert len(files) == len(r.levels)
+    for level, stored in zip(r.levels, files):
+        rgba = stored.reshape(level.shape[:3] + (4,))
+        assert np.array_equal(rgba[..., :3], level)
+
+
+def test_ibl_matches_the_command(tmp_path):
+    cli("ibl", SKY, "-o", tmp_path / "cmd", "--size", "16", "--lut-size", "16")
+    r = prtbake.ibl(SKY, tmp_path / "py", size=16, lut_size=16)
+    files = lambda d: sorted(str(p.relative_to(d)) for p in d.rglob("*") if p.is_file())
+    names = files(tmp_path / "cmd")
+    assert names == files(tmp_path / "py") and len(names) > 10
+    for name in names:
+        if not name.endswith(".json"):  # the JSON files record timings
+            assert (tmp_path / "cmd" / name).read_bytes() == (tmp_path / "py" / name).read_bytes(), name
+    assert len(r.files) > 0
+
+
+def test_run_matches_the_command(tmp_path):
+    job = {"jobs": [{"id": "lut", "type": "lut", "size": 16, "samples": 64,
+                     "outputs": {"exr": "a/lut.exr"}}]}
+    (tmp_path / "jobs.json").write_text(json.dumps(job))
+    r = prtbake.run(tmp_path / "jobs.json")
+    assert (r.ok, r.failed) == (1, 0)
+    first = (tmp_path / "a" / "lut.exr").read_bytes()
+    assert prtbake.run(tmp_path / "jobs.json").skipped == 1  # up to date
+    cli("run", tmp_path / "jobs.json", "--force")
+    assert (tmp_path / "a" / "lut.exr").read_bytes() == first
+
+
+# --- keywords: the declaration's, with the command line's checks ---
+
+def test_keywords_are_the_commands_options():
+    for product, keys in prtbake.keywords().items():
+        names = {k[0] for k in keys}
+        help_text = cli("keys").stdout
+        for name in names:
+            assert "`%s`" % name in help_text
+    # a value each refuses alike: the library's words
+    for kw, args in [(dict(order=0), ["--order", "0"]), (dict(samples=0), ["--samples", "0"]),
+                     (dict(mode="glossy"), ["--mode", "glossy"]), (dict(tolerance=0.01, samples=8),
+                                                                   ["--tolerance", "0.01", "--samples", "8"])]:
+        with pytest.raises(ValueError) as e:
+            prtbake.transport(SCENE, **kw)
+        p = cli("transport", SCENE, "-o", "/nonexistent/t.npy", *args, check=False)
+        assert p.returncode != 0
+        assert str(e.value) in p.stderr, (str(e.value), p.stderr)
+
+
+def test_errors_are_python_exceptions(tmp_path):
+    with pytest.raises(ValueError, match="not a keyword of transport"):
+        prtbake.transport(SCENE, sample=3)
+    with pytest.raises(prtbake.InputError, match="missing.obj"):
+        prtbake.transport(tmp_path / "missing.obj")
+    (tmp_path / "bad.exr").write_bytes(b"not an exr")
+    with pytest.raises(prtbake.InputError, match="bad.exr"):
+        prtbake.env(tmp_path / "bad.exr")
+    with pytest.raises(prtbake.InputError, match="out of range"):
+        prtbake.Mesh(np.zeros((3, 3), np.float32), np.array([[0, 1, 3]]))
+    with pytest.raises(prtbake.InputError):
+        prtbake.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, np.nan, 0]], np.float32), np.array([[0, 1, 2]]))
+    with pytest.raises(ValueError, match="lat-long"):
+        prtbake.env(np.zeros((4, 4, 3), np.float32))
+    with pytest.raises(ValueError, match="no device with that index"):
+        prtbake.lut(size=8, samples=8, device="99")
+    if not any(d["type"] == "gpu" for d in prtbake.devices()):
+        with pytest.raises(prtbake.DeviceError):
+            prtbake.lut(size=8, samples=8, device="gpu")
+    assert issubclass(prtbake.InputError, prtbake.Error)
+
+
+# --- leaks and threads ---
+
+def rss_kib():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() // 1024
+
+
+def test_no_leaks_over_a_thousand_calls():
+    pos, idx = make_grid_mesh(4)
+    mesh = prtbake.Mesh(pos, idx)
+    sky = np.ones((8, 16, 3), np.float32)
+
+    def calls(n):
+        for _ in range(n):
+            prtbake.env(sky, order=3)
+            prtbake.transport(mesh, samples=16, mode="unshadowed")
+            prtbake.Mesh(pos, idx).positions
+
+    calls(100)  # warm: programs built, allocator pools grown
+    refs = sys.getrefcount(mesh), sys.getrefcount(sky), sys.getrefcount(pos)
+    tracemalloc.start()
+    before_py, before_rss = tracemalloc.take_snapshot(), rss_kib()
+    calls(1000)
+    after_py, after_rss = tracemalloc.take_snapshot(), rss_kib()
+    tracemalloc.stop()
+    grown = sum(s.size_diff for s in after_py.compare_to(before_py, "filename") if s.size_diff > 0)
+    assert (sys.getrefcount(mesh), sys.getrefcount(sky), sys.getrefcount(pos)) == refs
+    # Bounds: Python objects kept over 1,000 calls under 64 KiB (a leaked result would keep
+    # ~1,000 objects of 100+ bytes), the process under 4 MiB more (each call's arrays are
+    # ~1 KiB: a leak of one per call is 3 MiB, of the transport's buffers far more).
+    assert grown < 64 * 1024, grown
+    assert after_rss - before_rss < 4096, (before_rss, after_rss)
+
+
+def test_two_threads_give_what_one_gives():
+    pos, idx = make_grid_mesh(16)
+    mesh = prtbake.Mesh(pos, idx)
+    alone = [prtbake.transport(mesh, samples=256, seed=s).coeffs for s in (1, 2)]
+    alone.append(prtbake.lut(size=16, samples=128).a)
+    got = [None, None, None]
+
+    def bake(i):
+        got[i] = prtbake.transport(mesh, samples=256, seed=i + 1).coeffs if i < 2 else prtbake.lut(size=16,
+                                                                                                 samples=128).a
+    threads = [threading.Thread(target=bake, args=(i,)) for i in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for a, b in zip(alone, got):
+        assert a.tobytes() == b.tobytes()
+
+
+# --- the stubs and the examples ---
+
+def test_stubs_type_check_an_example(tmp_path):
+    example = tmp_path / "example.py"
+    example.write_text(
+        "import numpy as np\nfrom numpy.typing import NDArray\nimport prtbake\n"
+        "sky = prtbake.env('sky.exr', order=3, window='hann')\n"
+        "c: NDArray[np.float64] = sky.coeffs\n"
+        "t = prtbake.transport(prtbake.Mesh(np.zeros((3, 3)), np.array([[0, 1, 2]])), samples=64)\n"
+        "n: int = t.order\n")
+    bad = tmp_path / "bad.py"
+    bad.write_text("import prtbake\nprtbake.transport('m.obj', samples='many')\nprtbake.env('s.exr', window='box')\n")
+    env = dict(os.environ, MYPYPATH=str(BUILD / "python"))
+    run = lambda f: subprocess.run([sys.executable, "-m", "mypy", "--strict", "--no-incremental",
+                                    "--cache-dir", str(tmp_path / "cache"), str(f)],
+                                   capture_output=True, text=True, env=env, timeout=300)
+    try:
+        import mypy  # noqa: F401
+    except ImportError:
+        if os.environ.get("PRTBAKE_FORBID_SKIPS"):
+            pytest.fail("mypy is not installed (PRTBAKE_FORBID_SKIPS is set)")
+        pytest.skip("mypy is not installed")
+    good = run(example)
+    assert good.returncode == 0, good.stdout
+    wrong = run(bad)
+    assert wrong.returncode != 0 and "samples" in wrong.stdout and "window" in wrong.stdout, wrong.stdout
+
+
+def test_examples_run_and_type_check(tmp_path):
+    examples = ROOT / "examples" / "python"
+    env = dict(os.environ, PYTHONPATH=str(BUILD / "python"))
+    p = subprocess.run([sys.executable, str(examples / "blender_mesh.py")], capture_output=True, text=True,
+                       env=env, timeout=300)
+    assert p.returncode == 0 and "shaded 12 vertices" in p.stdout, p.stderr
+    p = subprocess.run([sys.executable, str(examples / "bake_folder.py"), str(ASSETS), str(SKY), str(tmp_path),
+                        "--samples", "64"], capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    baked = np.load(tmp_path / "scene.transport.npy")
+    assert baked.tobytes() == prtbake.transport(SCENE, samples=64).coeffs.tobytes()
+    assert (tmp_path / "ibl" / "ibl.json").exists()
+    try:
+        import mypy  # noqa: F401
+    except ImportError:
+        pytest.skip("mypy is not installed")
+    p = subprocess.run([sys.executable, "-m", "mypy", "--strict", "--no-incremental", "--cache-dir",
+                        str(tmp_path / "cache"), *map(str, sorted(examples.glob("*.py")))],
+                       capture_output=True, text=True, env=dict(env, MYPYPATH=str(BUILD / "python")), timeout=300)
+    assert p.returncode == 0, p.stdout
