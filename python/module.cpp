@@ -26,6 +26,7 @@
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
 #include "prtbake/prefilter.h"
+#include "prtbake/progress.h"
 #include "prtbake/runtime.h"
 #include "prtbake/sh_rotate.h"
 #include "prtbake/transport.h"
@@ -55,6 +56,37 @@ Device device(const std::string& spec) {
   }
   std::unique_lock<std::mutex> lock(*m);
   return {jobs::processRuntime(spec), std::move(lock)};
+}
+
+// --- progress and Ctrl-C ---
+
+// The progress hook of a call that runs without the GIL (prtbake/progress.h): at each of the
+// library's checkpoints it runs Python's signal handlers (Ctrl-C raises KeyboardInterrupt) and
+// calls `progress(stage, fraction)` when given; either raising stops the call, and the Python
+// exception is raised when the call returns (the Cancelled translator leaves it in place).
+// `progress` is borrowed: the call's keyword arguments hold it.
+ProgressHook pythonHook(PyObject* progress) {
+  return [progress](const std::string& stage, double fraction) {
+    py::gil_scoped_acquire gil;
+    if (PyErr_Occurred() || PyErr_CheckSignals() != 0) return false;
+    if (progress) {
+      try {
+        py::reinterpret_borrow<py::object>(progress)(stage, fraction);
+      } catch (py::error_already_set& e) {
+        e.restore();
+        return false;
+      }
+    }
+    return true;
+  };
+}
+
+// The keyword `progress`: a callable or None.
+PyObject* progressOf(const py::kwargs& kwargs) {
+  if (!kwargs.contains("progress") || kwargs["progress"].is_none()) return nullptr;
+  py::object p = kwargs["progress"];
+  if (!PyCallable_Check(p.ptr())) throw UsageError("progress", "must be a callable progress(stage, fraction) or None");
+  return p.ptr();
 }
 
 // --- values between Python and JSON ---
@@ -237,7 +269,7 @@ EnvMap envArg(const py::object& source, const json& p, bool compact) {
 // --- products ---
 
 py::object envProduct(const py::object& source, const py::kwargs& kw) {
-  json p = paramsOf("env", kw, {{"json", "-"}}, {"device"});
+  json p = paramsOf("env", kw, {{"json", "-"}}, {"device", "progress"});
   EnvProjectOptions po = jobs::envProjectOptionsFrom(p);
   const bool autoOrder = p["order"] == "auto";
   const std::string spec = deviceOf(kw);
@@ -249,6 +281,7 @@ py::object envProduct(const py::object& source, const py::kwargs& kw) {
     const std::string path = pathOf(source);
     const EnvLoadOptions lo = jobs::envLoadOptionsFrom(p, true);
     const double yaw = p["yaw"].get<double>();
+    ProgressScope scope(pythonHook(progressOf(kw)));
     py::gil_scoped_release nogil;
     std::unique_ptr<Device> d;
     r = projectEnvironmentFile([&]() -> Runtime& {
@@ -257,6 +290,7 @@ py::object envProduct(const py::object& source, const py::kwargs& kw) {
         }, path, lo, yaw, po, &env);
   } else {
     env = envArg(source, p, false);
+    ProgressScope scope(pythonHook(progressOf(kw)));
     py::gil_scoped_release nogil;
     Device d = device(spec);
     r = projectEnvironment(d.rt, env, po);
@@ -299,11 +333,12 @@ py::array rotateProduct(const py::object& coeffs, const py::object& euler, const
 }
 
 py::object transportProduct(const py::object& meshObj, const py::kwargs& kw) {
-  const json p = paramsOf("transport", kw, {{"npy", "-"}}, {"device"});
+  const json p = paramsOf("transport", kw, {{"npy", "-"}}, {"device", "progress"});
   const TransportOptions o = jobs::transportOptionsFrom(p);
   const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
   const std::string spec = deviceOf(kw);
   TransportResult r;
+  ProgressScope scope(pythonHook(progressOf(kw)));
   {
     py::gil_scoped_release nogil;
     Device d = device(spec);
@@ -332,7 +367,7 @@ py::object glossyProduct(const py::object& meshObj, const py::kwargs& kw) {
                     (kw.contains("cpca_error") && !kw["cpca_error"].is_none());
   json outputs = {{"npy", "-"}};
   if (cpca) outputs["cpca"] = "-";
-  const json p = paramsOf("glossy", kw, outputs, {"device"});
+  const json p = paramsOf("glossy", kw, outputs, {"device", "progress"});
   const GlossyOptions o = jobs::glossyOptionsFrom(p);
   const MatrixDtype dtype = parseMatrixDtype(p["dtype"].get<std::string>());
   const CpcaOptions co = jobs::cpcaOptionsFrom(p);
@@ -343,6 +378,7 @@ py::object glossyProduct(const py::object& meshObj, const py::kwargs& kw) {
   GlossyResult r;
   CpcaResult c;
   const int channels = glossyChannels(*mesh, o);
+  ProgressScope scope(pythonHook(progressOf(kw)));
   {
     py::gil_scoped_release nogil;
     Device d = device(spec);
@@ -394,10 +430,11 @@ py::object glossyProduct(const py::object& meshObj, const py::kwargs& kw) {
 }
 
 py::object lutProduct(const py::kwargs& kw) {
-  const json p = paramsOf("lut", kw, {{"exr", "-"}}, {"device"});
+  const json p = paramsOf("lut", kw, {{"exr", "-"}}, {"device", "progress"});
   const LutOptions o = jobs::lutOptionsFrom(p);
   const std::string spec = deviceOf(kw);
   LutResult r;
+  ProgressScope scope(pythonHook(progressOf(kw)));
   {
     py::gil_scoped_release nogil;
     Device d = device(spec);
@@ -420,12 +457,13 @@ py::object lutProduct(const py::kwargs& kw) {
 }
 
 py::object prefilterProduct(const py::object& source, const py::kwargs& kw) {
-  const json p = paramsOf("prefilter", kw, {{"ktx2", "-"}}, {"device"});
+  const json p = paramsOf("prefilter", kw, {{"ktx2", "-"}}, {"device", "progress"});
   const PrefilterOptions o = jobs::prefilterOptionsFrom(p);
   validatePrefilterOptions(o);
   const EnvMap env = envArg(source, p, false);
   const std::string spec = deviceOf(kw);
   PrefilterResult r;
+  ProgressScope scope(pythonHook(progressOf(kw)));
   {
     py::gil_scoped_release nogil;
     Device d = device(spec);
@@ -450,13 +488,14 @@ py::object prefilterProduct(const py::object& source, const py::kwargs& kw) {
 }
 
 py::object iblProduct(const py::object& source, const py::object& dir, const py::kwargs& kw) {
-  const json p = paramsOf("ibl", kw, {{"dir", "-"}}, {"device"});
+  const json p = paramsOf("ibl", kw, {{"dir", "-"}}, {"device", "progress"});
   const IblPackageOptions o = jobs::iblOptionsFrom(p);
   if (!isPath(dir)) throw UsageError("out_dir", "must be a path");
   const std::string out = pathOf(dir);
   const EnvMap env = envArg(source, p, false);
   const std::string spec = deviceOf(kw);
   IblPackageResult r;
+  ProgressScope scope(pythonHook(progressOf(kw)));
   {
     py::gil_scoped_release nogil;
     Device d = device(spec);
@@ -472,7 +511,9 @@ py::object iblProduct(const py::object& source, const py::object& dir, const py:
 }
 
 py::object runJobs(const py::object& files, bool force, bool dryRun, const py::object& only, const py::object& shard,
-                   const std::string& deviceSpec, bool quiet) {
+                   const std::string& deviceSpec, bool quiet, const py::object& progress) {
+  if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+    throw UsageError("progress", "must be a callable progress(stage, fraction) or None");
   std::vector<jobs::JobFileRef> refs;
   if (isPath(files)) {
     refs.push_back({pathOf(files), "", ""});
@@ -487,6 +528,7 @@ py::object runJobs(const py::object& files, bool force, bool dryRun, const py::o
     for (const py::handle& id : only.cast<py::sequence>()) options.only.insert(id.cast<std::string>());
   if (!shard.is_none()) options.shard = jobs::parseShardSpec(shard.cast<std::string>(), "shard");
   jobs::RunTotals t;
+  ProgressScope scope(pythonHook(progress.is_none() ? nullptr : progress.ptr()));
   {
     py::gil_scoped_release nogil;
     std::unique_ptr<Device> d;
@@ -549,6 +591,9 @@ PYBIND11_MODULE(_prtbake, m) {
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
+    } catch (const Cancelled& e) {
+      // Stopped by Ctrl-C or by the progress function: its exception is already set.
+      if (!PyErr_Occurred()) PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
     } catch (const UsageError& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const InputError& e) {
@@ -598,7 +643,7 @@ PYBIND11_MODULE(_prtbake, m) {
   m.def("prefilter", &prefilterProduct, py::arg("source"));
   m.def("ibl", &iblProduct, py::arg("source"), py::arg("out_dir"));
   m.def("run", &runJobs, py::arg("job_files"), py::kw_only(), py::arg("force") = false, py::arg("dry_run") = false,
-        py::arg("only") = py::none(), py::arg("shard") = py::none(), py::arg("device") = "", py::arg("quiet") = true);
+        py::arg("only") = py::none(), py::arg("shard") = py::none(), py::arg("device") = "", py::arg("quiet") = true, py::arg("progress") = py::none());
   m.def("read_exr", &readExrFile, py::arg("path"));
   // Each product's keywords as the one declaration gives them: {product: [(key, kind, default, values, help)]},
   // kind one of integer, integer_or_auto, number, boolean, choice, choice_list, path, number_list.

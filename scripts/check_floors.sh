@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 # The public headers' folders (host/include/prtbake/NAME.h).
 public_folder() {
   case "$1" in
-    atomic_file|clock|error|hash|limits|raw_vector|runtime|sh|sh_rotate|tolerance|envmap) echo core ;;
+    atomic_file|clock|progress|error|hash|limits|raw_vector|runtime|sh|sh_rotate|tolerance|envmap) echo core ;;
     exr) echo io ;;
     mesh|bvh) echo geometry ;;
     env|env_sh) echo env ;;

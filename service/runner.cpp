@@ -19,6 +19,7 @@
 #include "prtbake/atomic_file.h"
 #include "prtbake/clock.h"
 #include "prtbake/error.h"
+#include "prtbake/progress.h"
 
 namespace prtbake::jobs {
 namespace fs = std::filesystem;
@@ -339,6 +340,9 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   } catch (const std::bad_alloc&) {
     fail("out of host memory");
     return;
+  } catch (const Cancelled& e) {  // the caller stopped the run (prtbake/progress.h): no more jobs
+    fail(e.what());
+    throw;
   } catch (const std::exception& e) {
     fail(reasonOf(job, e));
     return;

@@ -10,7 +10,8 @@ Each product is one call with NumPy arrays in and out:
 A product's keywords are its options as the command line and job files know them
 (`--bounce-tolerance` is `bounce_tolerance=`), with the same defaults, ranges and checks: they
 come from the one declaration of each product's options (`prtbake keys`, docs/jobs.md).
-`device=` picks the OpenCL device ("cpu", "gpu", an index; default $PRTBAKE_DEVICE or auto).
+`device=` picks the OpenCL device ("cpu", "gpu", an index; default $PRTBAKE_DEVICE or auto);
+`progress=` takes a function progress(stage, fraction). Ctrl-C stops a call within a second.
 The conventions (SH basis and order, cube faces, lat-long axes, units) are docs/conventions.md's.
 
 Errors: a bad parameter is a ValueError; a missing or malformed input a prtbake.InputError;
@@ -178,6 +179,9 @@ def _product(name: str) -> Any:
         lines.append("  %s: %s; %s" % (key, values or ("true or false" if kind == "boolean" else "a path"), meaning))
     params.append(_inspect.Parameter("device", _inspect.Parameter.KEYWORD_ONLY, default=None))
     lines.append("  device: OpenCL device, \"cpu\", \"gpu\" or an index (default $PRTBAKE_DEVICE or auto)")
+    params.append(_inspect.Parameter("progress", _inspect.Parameter.KEYWORD_ONLY, default=None))
+    lines.append("  progress: a function progress(stage, fraction) called between pieces of the work (raising stops")
+    lines.append("            the call, as Ctrl-C does: the call checks for it at the same points, within a second)")
 
     def call(*args: Any, **kwargs: Any) -> Any:
         return impl(*args, **kwargs)

@@ -345,3 +345,59 @@ def test_examples_run_and_type_check(tmp_path):
                         str(tmp_path / "cache"), *map(str, sorted(examples.glob("*.py")))],
                        capture_output=True, text=True, env=dict(env, MYPYPATH=str(BUILD / "python")), timeout=300)
     assert p.returncode == 0, p.stdout
+
+
+# --- progress and Ctrl-C ---
+
+def test_progress_reports_and_changes_nothing():
+    pos, idx = make_grid_mesh(40)
+    mesh = prtbake.Mesh(pos, idx)
+    seen = []
+    with_hook = prtbake.transport(mesh, samples=2048, mode="interreflected", bounces=2,
+                                  progress=lambda stage, f: seen.append((stage, f)))
+    plain = prtbake.transport(mesh, samples=2048, mode="interreflected", bounces=2)
+    assert with_hook.coeffs.tobytes() == plain.coeffs.tobytes()  # blocks of vertices: the same bits
+    stages = [s for s, _ in seen]
+    assert "transport: direct" in stages and "transport: bounce" in stages
+    direct = [f for s, f in seen if s == "transport: direct"]
+    assert direct == sorted(direct) and direct[-1] == 1.0
+    lut = []
+    prtbake.lut(size=32, samples=64, progress=lambda s, f: lut.append(f))
+    assert lut and lut[-1] == 1.0
+
+
+def test_a_raising_progress_function_stops_the_call():
+    pos, idx = make_grid_mesh(40)
+
+    class Stop(Exception):
+        pass
+
+    def stop(stage, fraction):
+        raise Stop(stage)
+
+    with pytest.raises(Stop, match="transport: direct"):
+        prtbake.transport(prtbake.Mesh(pos, idx), samples=1024, progress=stop)
+    with pytest.raises(ValueError, match="progress"):
+        prtbake.lut(size=8, progress=3)
+
+
+def test_ctrl_c_stops_a_long_call_within_a_second():
+    import signal
+    import time
+    pos, idx = make_grid_mesh(300)  # 90,601 vertices: several seconds at 4096 samples here
+    mesh = prtbake.Mesh(pos, idx)
+    sent = []
+
+    def interrupt():
+        time.sleep(0.5)
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    threading.Thread(target=interrupt).start()
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        prtbake.transport(mesh, samples=4096)
+    stopped = time.perf_counter()
+    assert sent, "the call ended before the signal: make the work longer"
+    # Bound: a block of work is about 4 M rays (0.25 s on this 2-core machine); 1 s is the goal.
+    assert stopped - sent[0] < 1.0, (stopped - sent[0], stopped - t0)

@@ -10,6 +10,7 @@
 #include "core/kernel_options.h"
 #include "prtbake/clock.h"
 #include "prtbake/env.h"
+#include "prtbake/progress.h"
 #include "prtbake/error.h"
 #include "prtbake/sh.h"
 
@@ -324,6 +325,7 @@ EnvProjectResult projectEnvironmentFile(const std::function<Runtime&()>& runtime
       [&](EnvMap& band, int firstRow) {
         band.yawDegrees = yawDegrees;
         addProjection(runtime(), band, firstRow, env->height, options, radiance, result);
+        reportProgress("env", double(firstRow + band.height) / double(std::max(env->height, 1)));
       },
       env);
   if (!streamed) {

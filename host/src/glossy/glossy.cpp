@@ -1,6 +1,7 @@
 // Glossy transfer matrices on the OpenCL device: direction sets, vertex blocks, the
 // Gram and bounce kernels (kernels/glossy.cl), and the assembly of each block's matrices.
 #include "prtbake/glossy.h"
+#include "prtbake/progress.h"
 
 #include <algorithm>
 #include <bitset>
@@ -220,6 +221,8 @@ class GlossyBaker {
     if (bounce_) traceBounce(nb);
     assemble(nb, errSum);
     sink(first, nb, values_.data());
+    progress_ = double(first + nb) / double(std::max<size_t>(mesh_.vertexCount(), 1));
+    reportProgress("glossy", progress_);
   }
 
  private:
@@ -306,6 +309,7 @@ class GlossyBaker {
       gramK_.setArg(a++, maskWords);
       rt_.queue().enqueueNDRangeKernel(gramK_, cl::NullRange, global, local);
       rt_.queue().enqueueReadBuffer(gramOut, CL_TRUE, 0, part_.size() * 4, part_.data());
+      reportProgress("glossy", progress_);
       if (keepMask_) {
         std::vector<uint16_t> bits(nb * size_t(maskWords));
         rt_.queue().enqueueReadBuffer(masks_.back(), CL_TRUE, 0, bits.size() * 2, bits.data());
@@ -362,6 +366,7 @@ class GlossyBaker {
         bounceK_.setArg(a++, keepHits_ ? (c == 0 ? 1 : 2) : 0);
         rt_.queue().enqueueNDRangeKernel(bounceK_, cl::NullRange, global, local);
         rt_.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part_.size() * 4, part_.data());
+        reportProgress("glossy", progress_);
         for (size_t i = 0; i < nb; ++i)
           for (size_t k = 0; k < nbc; ++k) bounceSums_[(i * ch_ + c) * nbc + k] += part_[i * nbc + k];
       }
@@ -393,6 +398,7 @@ class GlossyBaker {
   const Mesh& mesh_;
   const GlossyOptions& o_;
   GlossyStats& st_;
+  double progress_ = 0;  // the fraction of the mesh's vertices baked, for reportProgress
   const TransportOptions to_;
   const detail::RaySetup setup_;
   int no2_ = 0, ni2_ = 0, nmax2_ = 0, gramCount_ = 0, ch_ = 1;

@@ -1,5 +1,6 @@
 // Split-sum BRDF tables on the device: options, the sample table, the kernel launch.
 #include "prtbake/lut.h"
+#include "prtbake/progress.h"
 
 #include <algorithm>
 #include <chrono>
@@ -217,6 +218,7 @@ KernelOut runKernel(Runtime& rt, const LutOptions& o, size_t count, PointAt&& po
         *kernelSeconds += 1e-9 * double(done.getProfilingInfo<CL_PROFILING_COMMAND_END>() -
                                         done.getProfilingInfo<CL_PROFILING_COMMAND_START>());
       for (size_t i = 0; i < m * kSums; ++i) sums[i] += raw[i];
+      reportProgress("lut", (double(first) + double(m) * double(k0 + n) / o.samples) / double(count));
     }
     for (size_t i = 0; i < m; ++i) finishPoint(o, &sums[i * kSums], double(o.samples), res, first + i);
   }

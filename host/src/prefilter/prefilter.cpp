@@ -1,5 +1,6 @@
 // Prefiltered specular environments: options, schedules and the device driver.
 #include "prtbake/prefilter.h"
+#include "prtbake/progress.h"
 
 #include <algorithm>
 #include <chrono>
@@ -184,6 +185,7 @@ namespace {
 // The device side of the cut method: the tree's buffers and one kernel per lobe.
 class CutRunner {
  public:
+  void setProgress(double fraction) { progress_ = fraction; }
   CutRunner(Runtime& rt, const detail::BinTree& tree, PrefilterLobe lobe, int vectorWidth) : rt_(rt), tree_(tree) {
     vw_ = vectorWidth ? vectorWidth : rt.info().type == "gpu" ? 1 : 16;
     kernel_ = rt.kernel("prefilter.cl", "prefilter_cut", detail::prefilterCutOptions(lobe, vw_));
@@ -256,6 +258,10 @@ class CutRunner {
       kernel_.setArg(a++, out);
       rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(part.size() * size_t(wiPerLeaf)),
                                        cl::NDRange(size_t(wiPerLeaf)));
+      if (progressWanted()) {  // a cancellation point per launch (the level's fraction is the caller's)
+        rt_.queue().finish();
+        reportProgress("prefilter", progress_);
+      }
     }
     rt_.queue().finish();
     *kernelSeconds += secondsSince(t1);
@@ -273,6 +279,7 @@ class CutRunner {
 
  private:
   Runtime& rt_;
+  double progress_ = 0;  // the chain's fraction done before this level, for reportProgress
   const detail::BinTree& tree_;
   int vw_ = 16;
   cl::Kernel kernel_;
@@ -436,6 +443,7 @@ PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const Prefi
       level.alphaUsed = lobe == PrefilterLobe::Ggx       ? std::max(spec.alpha, result.alphaFloor)
                         : lobe == PrefilterLobe::Charlie ? std::max(spec.alpha, kLutClothAlphaMin)
                                                          : 1.0;
+      runner->setProgress(double(result.levels.size()) / double(specs.size()));
       cutLevel(rt, *runner, options, level);
     }
     for (float v : level.rgb)
@@ -444,6 +452,7 @@ PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const Prefi
                          "prefiltering produced a non-finite or negative value (radiance too large for float?)");
     result.kernelSeconds += level.kernelSeconds;
     result.levels.push_back(std::move(level));
+    reportProgress("prefilter", double(result.levels.size()) / double(specs.size()));
   }
   result.buildSeconds = rt.buildSeconds() - build0;
   result.totalSeconds = secondsSince(t0);

@@ -1,6 +1,7 @@
 // Transport on the OpenCL device: BVH upload, direct term, bounces, and "--tolerance"
 // (see transport.h and prtbake/tolerance.h).
 #include "prtbake/transport.h"
+#include "prtbake/progress.h"
 
 #include <algorithm>
 #include <chrono>
@@ -24,6 +25,9 @@ using Clock = std::chrono::steady_clock;
 // Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
 // scalar; 16 keeps the groups numerous enough to balance over the cores.
 constexpr size_t kLocalSize = 16;
+// Rays per launch when a progress hook wants the work in pieces: about 0.25 s on a 2-core CPU
+// (16 M rays/s), a few milliseconds on a GPU.
+constexpr size_t kRaysPerBlock = size_t(1) << 22;
 
 // The most device memory the direct term's blocked-ray masks may take (a bit per ray:
 // 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
@@ -71,6 +75,7 @@ class Tracer {
     const int nv = int(vertices.size());
     std::vector<double> sums(size_t(nv) * nc_, 0.0), seen(size_t(nv), 0.0);
     blocked_.clear();
+    stage_ = "transport: direct";
     if (nv > 0) {
       uploadVertices(vertices);
       cl::Buffer out(rt_.context(), CL_MEM_WRITE_ONLY, sums.size() * 4), vis(rt_.context(), CL_MEM_WRITE_ONLY, seen.size() * 4);
@@ -120,6 +125,7 @@ class Tracer {
                              const cl::Buffer& prev, bool more, TransportResult& r) {
     const int nv = int(vertices.size()), stride = channels * nc_;
     std::vector<double> sums(size_t(nv) * stride, 0.0);
+    stage_ = "transport: bounce";
     if (nv > 0) {
       uploadSurface();
       uploadVertices(vertices);
@@ -193,8 +199,7 @@ class Tracer {
     g.setArg(8, out);
     for (int c = 0; c < hitChunks_; ++c) {
       g.setArg(4, c);
-      rt_.queue().enqueueNDRangeKernel(g, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
-                                       cl::NDRange(kLocalSize));
+      launchVertices(g, nv, detail::kTransportSampleChunk, double(c) / hitChunks_, 1.0 / hitChunks_);
       collect(c, 0);
     }
   }
@@ -260,9 +265,27 @@ class Tracer {
         k.setArg(paddedArg + 2, mask == MaskUse::None ? 0 : words);
       }
       before(chunk);
-      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)),
-                                       cl::NDRange(kLocalSize));
+      const int chunks = (samples + detail::kTransportSampleChunk - 1) / detail::kTransportSampleChunk;
+      launchVertices(k, nv, n, double(chunk) / chunks, 1.0 / chunks);
       collect(chunk, n);
+    }
+  }
+
+  // One launch of `k` over the nv vertices; with a progress hook (prtbake/progress.h), blocks of
+  // about kRaysPerBlock rays (whole work-groups, so the same bits), each waited for and
+  // reported as fraction done + span × the part launched.
+  void launchVertices(cl::Kernel& k, int nv, int raysPerVertex, double done, double span) {
+    const size_t global = roundUp(size_t(nv), kLocalSize);
+    if (!progressWanted()) {
+      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(kLocalSize));
+      return;
+    }
+    const size_t block = std::max(kLocalSize, kRaysPerBlock / size_t(std::max(raysPerVertex, 1)) / kLocalSize * kLocalSize);
+    for (size_t first = 0; first < global; first += block) {
+      const size_t n = std::min(block, global - first);
+      rt_.queue().enqueueNDRangeKernel(k, cl::NDRange(first), cl::NDRange(n), cl::NDRange(kLocalSize));
+      rt_.queue().finish();
+      reportProgress(stage_, done + span * double(first + n) / double(global));
     }
   }
 
@@ -275,6 +298,7 @@ class Tracer {
   std::vector<uint8_t> unoccludable_;
   cl::Buffer nodes_, tris_, origins_, frames_, indices_, albedo_, noMask_;
   bool keepBlocked_ = false;
+  const char* stage_ = "transport: direct";  // what launchVertices reports
   std::vector<cl::Buffer> blocked_;  // per chunk of directions: V × words ushort
   uint64_t blockedRays_ = 0;         // the rays the last direct() found blocked
   // The first bounce's hits of those rays (3 floats each) and where each vertex's start,
