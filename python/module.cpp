@@ -25,6 +25,7 @@
 #include "prtbake/ibl.h"
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
+#include "prtbake/preview.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/progress.h"
 #include "prtbake/runtime.h"
@@ -546,6 +547,112 @@ py::object runJobs(const py::object& files, bool force, bool dryRun, const py::o
   return result("RunResult", f);
 }
 
+// --- previews: linear images as (H, W, 3) float32 arrays, and the PNG the command writes ---
+
+py::array imageArray(LinearImage&& img) {
+  const py::ssize_t h = img.height, w = img.width;
+  return adopt(std::move(img.rgb), {h, w, 3});
+}
+
+void writePng(const py::object& out, const LinearImage& img, double exposure, const std::string& what) {
+  if (out.is_none()) return;
+  if (!isPath(out)) throw UsageError("out", "must be a path");
+  const std::string path = pathOf(out);
+  py::gil_scoped_release nogil;
+  writePreviewPng(path, img, ToneMap{exposure}, {{"Description", what}});
+}
+
+// Radiance coefficients: an (n², 3) array, or a result whose `radiance` (env, ibl) holds them.
+ShCoeffs radianceArg(const py::object& v) {
+  return shFromArray(py::hasattr(v, "radiance") ? py::object(v.attr("radiance")) : v);
+}
+
+py::array previewEnv(const py::object& source, const py::kwargs& kw) {
+  const int width = kw.contains("size") ? kw["size"].cast<int>() : 512;
+  const double exposure = kw.contains("exposure") ? kw["exposure"].cast<double>() : 0.0;
+  if (width < 16 || width > 8192) throw UsageError("size", "must be 16..8192 (the panel width)");
+  const bool coefficients = py::isinstance<py::array>(source) && py::array(source).ndim() == 2;
+  ShCoeffs radiance;
+  EnvMap env;
+  if (coefficients || py::hasattr(source, "radiance")) {
+    radiance = radianceArg(source);
+  } else {
+    const json p = paramsOf("env", kw, {{"json", "-"}}, {"device", "progress", "size", "exposure", "out"});
+    if (p["order"] == "auto") throw UsageError("order", "a preview needs an order (1..32)");
+    const EnvProjectOptions po = jobs::envProjectOptionsFrom(p);
+    env = envArg(source, p, true);
+    const std::string spec = deviceOf(kw);
+    py::gil_scoped_release nogil;
+    Device d = device(spec);
+    const EnvProjectResult r = projectEnvironment(d.rt, env, po);
+    radiance = applyWindowAndQuantity(r.radiance, r.windowWeights, ShQuantity::Radiance);
+  }
+  LinearImage img;
+  {
+    py::gil_scoped_release nogil;
+    img = renderEnvPreview(env.width > 0 ? &env : nullptr, radiance, width);
+  }
+  writePng(kw.contains("out") ? py::object(kw["out"]) : py::none(), img, exposure,
+           "prtbake environment preview: environment | SH radiance reconstruction | irradiance/pi");
+  return imageArray(std::move(img));
+}
+
+py::array previewMesh(const py::object& meshObj, const py::object& transport, const py::object& radiance,
+                      std::pair<int, int> size, const py::object& view, double rotateLight, double exposure,
+                      const py::object& out, const std::string& spec) {
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  MeshPreviewOptions o;
+  o.width = size.first, o.height = size.second;
+  if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
+    throw UsageError("size", "must be (width, height), each 16..8192");
+  if (py::isinstance<py::str>(view)) {
+    const std::string v = view.cast<std::string>();
+    if (v == "side") o.yawDeg = 90;
+    else if (v == "top") o.pitchDeg = 90;
+    else if (v != "front") throw UsageError("view", "must be front, side, top or (yaw, pitch) in degrees");
+  } else {
+    const auto yp = view.cast<std::pair<double, double>>();
+    o.yawDeg = yp.first, o.pitchDeg = yp.second;
+  }
+  o.lightRotationDeg = rotateLight;
+  const FloatArray t = FloatArray::ensure(py::hasattr(transport, "coeffs") ? py::object(transport.attr("coeffs"))
+                                                                          : transport);
+  TransportCoeffs tc;
+  if (!t || (t.ndim() != 2 && !(t.ndim() == 3 && t.shape(1) == 3)))
+    throw UsageError("transport", "must be a (V, n²) or (V, 3, n²) array, or a TransportResult");
+  const py::ssize_t nc = t.shape(t.ndim() - 1);
+  while (tc.order * tc.order < nc) ++tc.order;
+  if (tc.order * tc.order != nc) throw UsageError("transport", "the last axis must hold n² coefficients");
+  tc.channels = t.ndim() == 3 ? 3 : 1;
+  tc.vertexCount = size_t(t.shape(0));
+  tc.coeffs.assign(t.data(), t.data() + t.size());
+  const ShCoeffs l = radianceArg(radiance);
+  LinearImage img;
+  {
+    py::gil_scoped_release nogil;
+    Device d = device(spec);
+    img = renderMeshPreview(d.rt, *mesh, tc, l, o).image;
+  }
+  writePng(out, img, exposure, "prtbake mesh preview: the mesh shaded with its transport under the SH radiance");
+  return imageArray(std::move(img));
+}
+
+py::array previewLut(const py::object& lut, int size, const py::object& out) {
+  const FloatArray a = FloatArray::ensure(lut.attr("a")), b = FloatArray::ensure(lut.attr("b"));
+  if (!a || !b || a.ndim() != 2 || a.shape(0) != a.shape(1) || b.ndim() != 2 || b.shape(0) != a.shape(0) ||
+      b.shape(1) != a.shape(1))
+    throw UsageError("lut", "must be a LutResult (square a and b tables)");
+  std::vector<LutChannel> channels = {{"R = A (scale)", a.data()}, {"G = B (bias)", b.data()}};
+  FloatArray third;
+  if (py::hasattr(lut, "third") && !lut.attr("third").is_none()) {
+    third = FloatArray::ensure(lut.attr("third"));
+    if (third && third.size() == a.size()) channels.push_back({"B = third table", third.data()});
+  }
+  LinearImage img = renderLutPreview(int(a.shape(0)), channels, "N.V", "rough", 0.0f, 1.0f, size);
+  writePng(out, img, 0.0, "prtbake LUT preview: x = N.V (0..1), y = roughness (0..1, bottom to top)");
+  return imageArray(std::move(img));
+}
+
 py::dict readExrFile(const py::object& file) {
   if (!isPath(file)) throw UsageError("path", "must be a path");
   const std::string path = pathOf(file);
@@ -645,6 +752,11 @@ PYBIND11_MODULE(_prtbake, m) {
   m.def("run", &runJobs, py::arg("job_files"), py::kw_only(), py::arg("force") = false, py::arg("dry_run") = false,
         py::arg("only") = py::none(), py::arg("shard") = py::none(), py::arg("device") = "", py::arg("quiet") = true, py::arg("progress") = py::none());
   m.def("read_exr", &readExrFile, py::arg("path"));
+  m.def("preview_env", &previewEnv, py::arg("source"));
+  m.def("preview_mesh", &previewMesh, py::arg("mesh"), py::arg("transport"), py::arg("radiance"), py::kw_only(),
+        py::arg("size") = std::pair<int, int>(800, 600), py::arg("view") = "front", py::arg("rotate_light") = 0.0,
+        py::arg("exposure") = 0.0, py::arg("out") = py::none(), py::arg("device") = "");
+  m.def("preview_lut", &previewLut, py::arg("lut"), py::kw_only(), py::arg("size") = 256, py::arg("out") = py::none());
   // Each product's keywords as the one declaration gives them: {product: [(key, kind, default, values, help)]},
   // kind one of integer, integer_or_auto, number, boolean, choice, choice_list, path, number_list.
   m.def("keywords", []() {

@@ -401,3 +401,57 @@ def test_ctrl_c_stops_a_long_call_within_a_second():
     assert sent, "the call ended before the signal: make the work longer"
     # Bound: a block of work is about 4 M rays (0.25 s on this 2-core machine); 1 s is the goal.
     assert stopped - sent[0] < 1.0, (stopped - sent[0], stopped - t0)
+
+
+# --- previews ---
+
+def png_pixels(path):
+    """The pixels of an 8-bit RGB or RGBA PNG (zlib and the five row filters), as (H, W, C) uint8."""
+    import zlib
+    b = pathlib.Path(path).read_bytes()
+    pos, idat, w = 8, b"", 0
+    while pos < len(b):
+        n, kind = struct.unpack(">I4s", b[pos:pos + 8])
+        body = b[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            w, h, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert depth == 8 and colour in (2, 6)
+            c = 3 if colour == 2 else 4
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + n
+    raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + w * c)
+    out = np.zeros((h, w * c), np.int32)
+    for y in range(h):
+        f, row = raw[y, 0], raw[y, 1:].astype(np.int32)
+        up = out[y - 1] if y else np.zeros(w * c, np.int32)
+        for x in range(w * c):
+            left = out[y, x - c] if x >= c else 0
+            ul = up[x - c] if x >= c and y else 0
+            if f == 0: p = 0
+            elif f == 1: p = left
+            elif f == 2: p = up[x]
+            elif f == 3: p = (left + up[x]) // 2
+            else:
+                pa, pb, pc = abs(up[x] - ul), abs(left - ul), abs(left + up[x] - 2 * ul)
+                p = left if pa <= pb and pa <= pc else up[x] if pb <= pc else ul
+            out[y, x] = (row[x] + p) & 255
+    return out.reshape(h, w, c).astype(np.uint8)
+
+
+def test_previews_match_the_command(tmp_path):
+    cli("env", SKY, "-o", tmp_path / "sky.json")
+    cli("transport", SCENE, "-o", tmp_path / "t.npy", "--samples", "64")
+    cli("preview", "mesh", SCENE, "--transport", tmp_path / "t.npy", "--env", tmp_path / "sky.json",
+        "-o", tmp_path / "cmd_mesh.png", "--size", "96x64", "--view", "side")
+    img = prtbake.preview_mesh(SCENE, prtbake.transport(SCENE, samples=64), prtbake.env(SKY), size=(96, 64),
+                               view="side", out=tmp_path / "py_mesh.png")
+    assert img.shape == (64, 96, 3) and img.dtype == np.float32 and img.max() > 0
+    assert np.array_equal(png_pixels(tmp_path / "cmd_mesh.png"), png_pixels(tmp_path / "py_mesh.png"))
+    cli("preview", "env", SKY, "-o", tmp_path / "cmd_env.png", "--size", "64", "--order", "5")
+    prtbake.preview_env(SKY, order=5, size=64, out=tmp_path / "py_env.png")
+    assert np.array_equal(png_pixels(tmp_path / "cmd_env.png"), png_pixels(tmp_path / "py_env.png"))
+    cli("lut", "-o", tmp_path / "l.exr", "--size", "16", "--samples", "64")
+    cli("preview", "lut", tmp_path / "l.exr", "-o", tmp_path / "cmd_lut.png", "--size", "64")
+    prtbake.preview_lut(prtbake.lut(size=16, samples=64), size=64, out=tmp_path / "py_lut.png")
+    assert np.array_equal(png_pixels(tmp_path / "cmd_lut.png"), png_pixels(tmp_path / "py_lut.png"))
