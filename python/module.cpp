@@ -237,8 +237,10 @@ std::shared_ptr<Mesh> meshFromArrays(const py::object& positions, const py::obje
 
 // An environment argument as an EnvMap: a path (loaded as the commands load it) or an array,
 // (H, 2H, 3) lat-long or (6, N, N, 3) cube faces in the order and orientation of
-// docs/conventions.md "Cube faces".
-EnvMap envArg(const py::object& source, const json& p, bool compact) {
+// docs/conventions.md "Cube faces". An array's texels are read in place (EnvMap::rgbView) when
+// they are float32 and C-ordered, else from one converted copy; *keep holds whichever array
+// the map points into, and must outlive it.
+EnvMap envArg(const py::object& source, const json& p, bool compact, py::object* keep) {
   EnvMap env;
   if (isPath(source)) {
     const std::string path = pathOf(source);
@@ -260,7 +262,8 @@ EnvMap envArg(const py::object& source, const json& p, bool compact) {
     env.height = int(cube ? a.shape(1) : a.shape(0));
     env.layoutName = cube ? "faces" : "latlong";
     env.source = "array";
-    env.rgb.assign(a.data(), a.data() + a.size());
+    *keep = a;
+    env.rgbView = a.data();
     validateEnvironment(env, p["clamp_invalid"].get<bool>());
   }
   env.yawDegrees = p["yaw"].get<double>();
@@ -275,6 +278,7 @@ py::object envProduct(const py::object& source, const py::kwargs& kw) {
   const bool autoOrder = p["order"] == "auto";
   const std::string spec = deviceOf(kw);
   EnvMap env;
+  py::object keep;  // an array the map reads in place
   EnvProjectResult r;
   json selection;
   const auto t0 = std::chrono::steady_clock::now();
@@ -290,7 +294,7 @@ py::object envProduct(const py::object& source, const py::kwargs& kw) {
           return d->rt;
         }, path, lo, yaw, po, &env);
   } else {
-    env = envArg(source, p, false);
+    env = envArg(source, p, false, &keep);
     ProgressScope scope(pythonHook(progressOf(kw)));
     py::gil_scoped_release nogil;
     Device d = device(spec);
@@ -461,7 +465,9 @@ py::object prefilterProduct(const py::object& source, const py::kwargs& kw) {
   const json p = paramsOf("prefilter", kw, {{"ktx2", "-"}}, {"device", "progress"});
   const PrefilterOptions o = jobs::prefilterOptionsFrom(p);
   validatePrefilterOptions(o);
-  const EnvMap env = envArg(source, p, false);
+  py::object keep;
+  EnvMap env = envArg(source, p, false, &keep);
+  env.ownTexels();  // the prefilter reads rgb itself
   const std::string spec = deviceOf(kw);
   PrefilterResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
@@ -493,7 +499,9 @@ py::object iblProduct(const py::object& source, const py::object& dir, const py:
   const IblPackageOptions o = jobs::iblOptionsFrom(p);
   if (!isPath(dir)) throw UsageError("out_dir", "must be a path");
   const std::string out = pathOf(dir);
-  const EnvMap env = envArg(source, p, false);
+  py::object keep;
+  EnvMap env = envArg(source, p, false, &keep);
+  env.ownTexels();  // the packages' prefilter reads rgb itself
   const std::string spec = deviceOf(kw);
   IblPackageResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
@@ -574,13 +582,14 @@ py::array previewEnv(const py::object& source, const py::kwargs& kw) {
   const bool coefficients = py::isinstance<py::array>(source) && py::array(source).ndim() == 2;
   ShCoeffs radiance;
   EnvMap env;
+  py::object keep;  // an array the map reads in place
   if (coefficients || py::hasattr(source, "radiance")) {
     radiance = radianceArg(source);
   } else {
     const json p = paramsOf("env", kw, {{"json", "-"}}, {"device", "progress", "size", "exposure", "out"});
     if (p["order"] == "auto") throw UsageError("order", "a preview needs an order (1..32)");
     const EnvProjectOptions po = jobs::envProjectOptionsFrom(p);
-    env = envArg(source, p, true);
+    env = envArg(source, p, true, &keep);
     const std::string spec = deviceOf(kw);
     py::gil_scoped_release nogil;
     Device d = device(spec);

@@ -455,3 +455,33 @@ def test_previews_match_the_command(tmp_path):
     cli("preview", "lut", tmp_path / "l.exr", "-o", tmp_path / "cmd_lut.png", "--size", "64")
     prtbake.preview_lut(prtbake.lut(size=16, samples=64), size=64, out=tmp_path / "py_lut.png")
     assert np.array_equal(png_pixels(tmp_path / "cmd_lut.png"), png_pixels(tmp_path / "py_lut.png"))
+
+
+def test_an_environment_array_is_read_in_place(tmp_path):
+    # A 100 MB float32 lat-long: the call's peak rise stays well under the array's size when
+    # the texels are read where they are (a copy would add 100 MB); float64 is converted once.
+    code = ("import resource, numpy as np, prtbake\n"
+            "sky = np.ones((2048, 4096, 3), np.{dtype}); sky[:1024] *= 2\n"
+            "prtbake.env(np.ones((8, 16, 3), np.float32))\n"
+            "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+            "r = prtbake.env(sky, order=3)\n"
+            "after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+            "print((after - before) // 1024)\n")
+    env = dict(os.environ, PYTHONPATH=str(BUILD / "python"))
+    rise = {}
+    for dtype in ("float32", "float64"):
+        p = subprocess.run([sys.executable, "-c", code.format(dtype=dtype)], capture_output=True, text=True,
+                           env=env, timeout=300)
+        assert p.returncode == 0, p.stderr
+        rise[dtype] = int(p.stdout.split()[-1])
+    # Bounds: the float32 array (96 MiB) costs under 32 MiB more (the kernel's row sums and the
+    # device's small buffers); the float64 one gets its one float32 copy (96 MiB) and no more.
+    assert rise["float32"] < 32, rise
+    assert 64 < rise["float64"] < 160, rise
+    # Invalid texels: refused, or clamped in a copy (the caller's array is left as it was).
+    sky = np.ones((8, 16, 3), np.float32)
+    sky[2, 3, 1] = np.nan
+    with pytest.raises(prtbake.InputError, match="array"):
+        prtbake.env(sky)
+    r = prtbake.env(sky, clamp_invalid=True)
+    assert r.clamped_texels == 1 and np.isnan(sky[2, 3, 1])

@@ -52,6 +52,11 @@ struct EnvMap {
   RawVector<float> rgb;
   RawVector<uint16_t> halfRgb;
   RawVector<uint8_t> codes;
+  // Float texels that the caller holds (an array of the Python module, read in place): used
+  // instead of `rgb`, which is then empty, by the projection, validateEnvironment and texel();
+  // ownTexels() copies them into `rgb` for the code that reads `rgb` itself. The caller keeps
+  // them alive and unchanged while the map is in use.
+  const float* rgbView = nullptr;
   std::array<float, 256> codeToLinear{};
   std::array<CubeFaceBasis, 6> faces = standardCubeBases();  // cube only
   double yawDegrees = 0.0;
@@ -67,6 +72,10 @@ struct EnvMap {
   std::array<float, 3> texel(size_t index) const;
   // Converts the texels to float storage (a no-op when they are).
   void toFloat();
+  // The float texels: the caller's (rgbView) or rgb's.
+  const float* floatTexels() const { return rgbView ? rgbView : rgb.data(); }
+  // Copies the caller's texels (rgbView) into rgb, so that the map owns them.
+  void ownTexels();
 };
 
 struct EnvLoadOptions {

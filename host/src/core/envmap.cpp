@@ -105,7 +105,14 @@ std::array<float, 3> EnvMap::texel(size_t index) const {
     case EnvStorage::Float:
       break;
   }
-  return {rgb[3 * index], rgb[3 * index + 1], rgb[3 * index + 2]};
+  const float* f = floatTexels();
+  return {f[3 * index], f[3 * index + 1], f[3 * index + 2]};
+}
+
+void EnvMap::ownTexels() {
+  if (!rgbView) return;
+  rgb.assign(rgbView, rgbView + 3 * texelCount());
+  rgbView = nullptr;
 }
 
 void EnvMap::toFloat() {
@@ -138,10 +145,22 @@ InvalidTexels countInvalidTexels(EnvMap& env, bool clamp) {
   const std::string& src = env.source.empty() ? std::string("environment") : env.source;
   const size_t values = env.storage() == EnvStorage::Code8 ? env.codes.size()
                         : env.storage() == EnvStorage::Half ? env.halfRgb.size()
+                        : env.rgbView                      ? env.texelCount() * 3
                                                              : env.rgb.size();
   if (values != env.texelCount() * 3) throw InputError(src, "pixel data has the wrong size");
   InvalidTexels bad;
-  if (env.storage() == EnvStorage::Float) {
+  if (env.rgbView) {  // the caller's texels: counted in place, copied only to be clamped
+    for (size_t i = 0; i < values; ++i)
+      if (!(env.rgbView[i] >= 0.0f) || std::isinf(env.rgbView[i])) {
+        ++bad.values;
+        if (!std::isfinite(env.rgbView[i])) ++bad.nonFinite;
+      }
+    if (bad.values > 0 && clamp) {
+      env.ownTexels();
+      for (float& v : env.rgb)
+        if (!(v >= 0.0f) || std::isinf(v)) v = 0.0f;
+    }
+  } else if (env.storage() == EnvStorage::Float) {
     for (float& v : env.rgb) {
       if (!(v >= 0.0f) || std::isinf(v)) {
         ++bad.values;

@@ -214,10 +214,10 @@ void addProjection(Runtime& rt, const EnvMap& env, int firstRow, int fullHeight,
   // The texels in their own storage (float, half or 8-bit codes), and the codes' table.
   void* texels = storage == EnvStorage::Code8 ? static_cast<void*>(const_cast<uint8_t*>(env.codes.data()))
                  : storage == EnvStorage::Half ? static_cast<void*>(const_cast<uint16_t*>(env.halfRgb.data()))
-                                               : static_cast<void*>(const_cast<float*>(env.rgb.data()));
+                                               : static_cast<void*>(const_cast<float*>(env.floatTexels()));
   const size_t texelBytes = storage == EnvStorage::Code8 ? env.codes.size()
                             : storage == EnvStorage::Half ? 2 * env.halfRgb.size()
-                                                          : 4 * env.rgb.size();
+                                                          : 4 * 3 * env.texelCount();
   cl::Buffer rgb(rt.context(), CL_MEM_READ_ONLY | hostFlags, texelBytes, texels);
   cl::Buffer codeTable(rt.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, 256 * sizeof(float),
                        const_cast<float*>(env.codeToLinear.data()));
