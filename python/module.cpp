@@ -461,21 +461,24 @@ py::object lutProduct(const py::kwargs& kw) {
   return result("LutResult", f);
 }
 
-py::object prefilterProduct(const py::object& source, const py::kwargs& kw) {
-  const json p = paramsOf("prefilter", kw, {{"ktx2", "-"}}, {"device", "progress"});
+// The chain of prefilter's keywords (`own`: the caller's other keywords).
+PrefilterResult prefilterChain(const py::object& source, const py::kwargs& kw, std::vector<std::string> own) {
+  own.insert(own.end(), {"device", "progress"});
+  const json p = paramsOf("prefilter", kw, {{"ktx2", "-"}}, own);
   const PrefilterOptions o = jobs::prefilterOptionsFrom(p);
   validatePrefilterOptions(o);
   py::object keep;
   EnvMap env = envArg(source, p, false, &keep);
   env.ownTexels();  // the prefilter reads rgb itself
   const std::string spec = deviceOf(kw);
-  PrefilterResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
-  {
-    py::gil_scoped_release nogil;
-    Device d = device(spec);
-    r = prefilterEnvironment(d.rt, env, o);
-  }
+  py::gil_scoped_release nogil;
+  Device d = device(spec);
+  return prefilterEnvironment(d.rt, env, o);
+}
+
+py::object prefilterProduct(const py::object& source, const py::kwargs& kw) {
+  PrefilterResult r = prefilterChain(source, kw, {});
   py::list levels, roughness, alpha, error;
   for (PrefilterLevel& l : r.levels) {
     const py::ssize_t n = l.spec.size;
@@ -646,6 +649,22 @@ py::array previewMesh(const py::object& meshObj, const py::object& transport, co
   return imageArray(std::move(img));
 }
 
+// Every level of the chain as a lat-long panel and the split-sum spheres (prtbake preview prefilter).
+py::array previewPrefilter(const py::object& source, const py::kwargs& kw) {
+  const int width = kw.contains("panel_width") ? kw["panel_width"].cast<int>() : 256;
+  if (width < 16 || width > 8192) throw UsageError("panel_width", "must be 16..8192");
+  const PrefilterResult r = prefilterChain(source, kw, {"panel_width", "out"});
+  LinearImage img;
+  {
+    py::gil_scoped_release nogil;
+    Device d = device(deviceOf(kw));
+    img = renderPrefilterPreview(d.rt, r, width);
+  }
+  writePng(kw.contains("out") ? py::object(kw["out"]) : py::none(), img, 0.0,
+           "prtbake prefilter preview: each level as a lat-long panel, and split-sum spheres r = 0 ... 1");
+  return imageArray(std::move(img));
+}
+
 py::array previewLut(const py::object& lut, int size, const py::object& out) {
   const FloatArray a = FloatArray::ensure(lut.attr("a")), b = FloatArray::ensure(lut.attr("b"));
   if (!a || !b || a.ndim() != 2 || a.shape(0) != a.shape(1) || b.ndim() != 2 || b.shape(0) != a.shape(0) ||
@@ -765,6 +784,7 @@ PYBIND11_MODULE(_prtbake, m) {
   m.def("preview_mesh", &previewMesh, py::arg("mesh"), py::arg("transport"), py::arg("radiance"), py::kw_only(),
         py::arg("size") = std::pair<int, int>(800, 600), py::arg("view") = "front", py::arg("rotate_light") = 0.0,
         py::arg("exposure") = 0.0, py::arg("out") = py::none(), py::arg("device") = "");
+  m.def("preview_prefilter", &previewPrefilter, py::arg("source"));
   m.def("preview_lut", &previewLut, py::arg("lut"), py::kw_only(), py::arg("size") = 256, py::arg("out") = py::none());
   // Each product's keywords as the one declaration gives them: {product: [(key, kind, default, values, help)]},
   // kind one of integer, integer_or_auto, number, boolean, choice, choice_list, path, number_list.
