@@ -3,7 +3,8 @@
 //
 //   bench_call lut|env|transport CALLS [MESH]
 //   bench_call peak 1 MESH: the peak resident memory (MiB) before and after one computeTransport
-//   of MESH at order 8, 64 samples (bench_python.py compares the module's with it).
+//   of MESH at order 8, 64 samples, the output's size and the resident memory at start-up
+//   (bench_python.py compares the module's with it).
 //   lut: computeLut, 16², 64 samples; env: projectEnvironment of a 64×32 lat-long of ones,
 //   order 3; transport: computeTransport of MESH, shadowed, 64 samples.
 // Prints one line: "<what> <calls> <median seconds per call> <min seconds per call>", each
@@ -25,6 +26,17 @@
 
 using namespace prtbake;
 
+// The resident memory now (VmRSS), in MiB.
+static double residentMiB() {
+  FILE* f = std::fopen("/proc/self/status", "r");
+  char line[256];
+  double kib = 0;
+  while (f && std::fgets(line, sizeof line, f))
+    if (std::sscanf(line, "VmRSS: %lf", &kib) == 1) break;
+  if (f) std::fclose(f);
+  return kib / 1024.0;
+}
+
 // The CPU device's runtime, made on first use (after the mesh is loaded, as the module's calls make it).
 static Runtime& rt0() {
   static Runtime rt("cpu");
@@ -39,6 +51,7 @@ int main(int argc, char** argv) {
   const std::string what = argv[1];
   const int calls = std::atoi(argv[2]);
   if (what == "peak" && argc > 3) {
+    const double startup = residentMiB();
     const Mesh mesh = loadMesh(argv[3]);
     rusage before{}, after{};
     getrusage(RUSAGE_SELF, &before);
@@ -46,7 +59,8 @@ int main(int argc, char** argv) {
     o.order = 8, o.samples = 64;
     const TransportResult r = computeTransport(rt0(), mesh, o);
     getrusage(RUSAGE_SELF, &after);
-    std::printf("%.1f %.1f %.1f\n", before.ru_maxrss / 1024.0, after.ru_maxrss / 1024.0, r.coeffs.size() * 4.0 / 1048576);
+    std::printf("%.1f %.1f %.1f %.1f\n", before.ru_maxrss / 1024.0, after.ru_maxrss / 1024.0, r.coeffs.size() * 4.0 / 1048576,
+                startup);
     return 0;
   }
   if ((what != "lut" && what != "env" && what != "transport") || calls < 1) {

@@ -67,7 +67,13 @@ Device device(const std::string& spec) {
 // exception is raised when the call returns (the Cancelled translator leaves it in place).
 // `progress` is borrowed: the call's keyword arguments hold it.
 ProgressHook pythonHook(PyObject* progress) {
-  return [progress](const std::string& stage, double fraction) {
+  // Without a progress function the hook only looks for Ctrl-C, at most every kSignalCheck
+  // seconds: a short call never takes the GIL back before it ends.
+  constexpr double kSignalCheck = 0.05;
+  auto last = std::make_shared<std::chrono::steady_clock::time_point>(std::chrono::steady_clock::now());
+  return [progress, last](const std::string& stage, double fraction) {
+    if (!progress && secondsSince(*last) < kSignalCheck) return true;
+    *last = std::chrono::steady_clock::now();
     py::gil_scoped_acquire gil;
     if (PyErr_Occurred() || PyErr_CheckSignals() != 0) return false;
     if (progress) {
