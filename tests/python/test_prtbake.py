@@ -478,9 +478,10 @@ def test_an_environment_array_is_read_in_place(tmp_path):
         assert p.returncode == 0, p.stderr
         rise[dtype] = int(p.stdout.split()[-1])
     # Bounds: the float32 array (96 MiB) costs under 32 MiB more (the kernel's row sums and the
-    # device's small buffers); the float64 one gets its one float32 copy (96 MiB) and no more.
+    # device's small buffers); the float64 one gets its one float32 copy (96 MiB) and no more
+    # (its own creation's temporaries may already have raised the peak: no lower bound).
     assert rise["float32"] < 32, rise
-    assert 64 < rise["float64"] < 160, rise
+    assert rise["float64"] < 160, rise
     # Invalid texels: refused, or clamped in a copy (the caller's array is left as it was).
     sky = np.ones((8, 16, 3), np.float32)
     sky[2, 3, 1] = np.nan
