@@ -223,8 +223,8 @@ std::shared_ptr<Mesh> meshFromArrays(const py::object& positions, const py::obje
   using IndexArray = py::array_t<int64_t, py::array::c_style | py::array::forcecast>;
   const IndexArray idx = IndexArray::ensure(indices);
   if (!idx || idx.ndim() != 2 || idx.shape(1) != 3) throw UsageError("indices", "must be a (T, 3) integer array");
-  if (!py::isinstance<py::array>(indices) || py::array(indices).dtype().kind() == 'f')
-    if (py::isinstance<py::array>(indices)) throw UsageError("indices", "must hold integers, not floats");
+  if (py::isinstance<py::array>(indices) && py::array(indices).dtype().kind() == 'f')
+    throw UsageError("indices", "must hold integers, not floats");
   mesh->indices.resize(size_t(idx.size()));
   for (py::ssize_t i = 0; i < idx.size(); ++i) {
     const int64_t k = idx.data()[i];
@@ -264,7 +264,7 @@ EnvMap envArg(const py::object& source, const json& p, bool compact, py::object*
     if ((cube && layout != "auto" && layout != "faces") || (latlong && layout != "auto" && layout != "latlong"))
       throw UsageError("layout", layout + " does not match the array's shape");
     env.layout = cube ? EnvLayout::Cube : EnvLayout::LatLong;
-    env.width = int(cube ? a.shape(1) : a.shape(1));
+    env.width = int(a.shape(1));
     env.height = int(cube ? a.shape(1) : a.shape(0));
     env.layoutName = cube ? "faces" : "latlong";
     env.source = "array";
