@@ -4,11 +4,12 @@
 # PRTBAKE_BUILD_PKGS: the library and the CLI; PRTBAKE_TEST_PKGS adds the tests' needs
 # (Catch2, Slurm and Munge for the throw-away cluster of the Slurm test, and Chromium, which
 # runs the glossy GLSL of docs/glsl/ headless in test_glossy_glsl; Debian's NumPy and pybind11
-# for the Python module, pytest and mypy for its tests).
+# for the Python module, pytest and mypy for its tests; strace, whose fault injection fails single
+# writes and fsyncs in tests/queue/full_disk.py).
 PRTBAKE_BUILD_PKGS="build-essential cmake pocl-opencl-icd ocl-icd-opencl-dev opencl-clhpp-headers clinfo \
 libopenexr-dev libtinygltf-dev libtinyobjloader-dev libglm-dev libstb-dev nlohmann-json3-dev"
 PRTBAKE_TEST_PKGS="$PRTBAKE_BUILD_PKGS catch2 slurm-wlm munge chromium python3-dev python3-numpy python3-pybind11 pybind11-dev \
-python3-pytest mypy"
+python3-pytest mypy strace"
 # The KTX2 read-back tests run ktx-parse (tests/js) on Node: nodejs, and npm where the nodejs
 # package does not bring it (NodeSource's does; Debian's does not).
 PRTBAKE_PKGS=$PRTBAKE_TEST_PKGS

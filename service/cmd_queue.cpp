@@ -31,7 +31,9 @@
 #include <thread>
 
 #include "cli.h"
+#include "confine.h"
 #include "manifest.h"
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "runner.h"
 
@@ -228,10 +230,62 @@ class Worker {
   int done_ = 0, failed_ = 0;
 };
 
+// DIR/queue.json, the queue's own settings: {"input_roots": [...], "output_roots": [...],
+// "max_job_file_bytes": N, "max_jobs": N}, relative roots against DIR. Whoever can write it
+// can widen the roots, so it is refused unless it is a regular file owned by DIR's owner and
+// neither it nor DIR is writable by group or others.
+void readQueueConfig(const std::string& dir, std::vector<std::string>* inputRoots,
+                     std::vector<std::string>* outputRoots, jobs::JobFileLimits* limits) {
+  const std::string path = dir + "/queue.json";
+  struct stat st {}, dirSt {};
+  if (::lstat(path.c_str(), &st) != 0) return;
+  if (::stat(dir.c_str(), &dirSt) != 0) throw InputError(dir, std::strerror(errno));
+  if (!S_ISREG(st.st_mode)) throw InputError(path, "not a regular file (a link is not followed)");
+  if (st.st_uid != dirSt.st_uid)
+    throw InputError(path, "owned by uid " + std::to_string(st.st_uid) + ", not by the queue directory's owner (uid " +
+                               std::to_string(dirSt.st_uid) + ")");
+  if (st.st_mode & (S_IWGRP | S_IWOTH)) throw InputError(path, "writable by group or others (chmod go-w)");
+  if (dirSt.st_mode & (S_IWGRP | S_IWOTH))
+    throw InputError(dir, "writable by group or others, so anyone could replace queue.json (chmod go-w; only pending/ needs to be shared)");
+  jobs::json config;
+  try {
+    config = jobs::json::parse(readFile(path));
+  } catch (const jobs::json::exception& e) {
+    throw InputError(path, e.what());
+  }
+  if (!config.is_object()) throw InputError(path, "expected an object");
+  auto roots = [&](const char* key, std::vector<std::string>* out) {
+    if (!config.contains(key)) return;
+    if (!config[key].is_array()) throw InputError(path, std::string(key) + ": expected an array of directories");
+    for (const auto& r : config[key]) {
+      if (!r.is_string() || r.get<std::string>().empty()) throw InputError(path, std::string(key) + ": expected a directory");
+      out->push_back((fs::path(dir) / r.get<std::string>()).string());
+    }
+  };
+  auto count = [&](const char* key, size_t* out) {
+    if (!config.contains(key)) return;
+    if (!config[key].is_number_unsigned() || config[key].get<uint64_t>() == 0)
+      throw InputError(path, std::string(key) + ": expected a positive integer");
+    *out = size_t(config[key].get<uint64_t>());
+  };
+  for (auto it = config.begin(); it != config.end(); ++it)
+    if (it.key() != "input_roots" && it.key() != "output_roots" && it.key() != "max_job_file_bytes" && it.key() != "max_jobs")
+      throw InputError(path, it.key() + ": unknown key (expected input_roots, output_roots, max_job_file_bytes, max_jobs)");
+  roots("input_roots", inputRoots);
+  roots("output_roots", outputRoots);
+  count("max_job_file_bytes", &limits->maxBytes);
+  count("max_jobs", &limits->maxJobs);
+}
+
 int runQueue(const CommandLine& cl) {
   jobs::RunOptions options;
   options.force = cl.has("force");
   options.device = cl.device();
+  std::vector<std::string> inputRoots = jobs::splitRootList(cl.get("input-root")),
+                           outputRoots = jobs::splitRootList(cl.get("output-root"));
+  readQueueConfig(cl.positional[0], &inputRoots, &outputRoots, &options.limits);
+  if (!inputRoots.empty() || !outputRoots.empty())
+    options.confinement = std::make_shared<jobs::Confinement>(inputRoots, outputRoots);
   jobs::Reporter reporter(cl.quiet(), cl.has("log-json"));
   jobs::Runner runner(options, reporter);  // one runtime for every file this worker runs
   Worker worker(cl, reporter, runner);
@@ -246,11 +300,15 @@ PRTBAKE_COMMAND(Command{
     "Takes job files (*.json) from DIR/pending, claims each by renaming it into DIR/running,\n"
     "runs it like 'prtbake run' and moves it to DIR/done or DIR/failed with its log\n"
     "(<stem>.log beside it). Relative paths in a job file resolve against DIR/pending.\n"
-    "SIGINT/SIGTERM finish the current job file, then stop. See docs/jobs.md.",
+    "SIGINT/SIGTERM finish the current job file, then stop. With --input-root/--output-root\n"
+    "(or DIR/queue.json), jobs read and write only below those directories, through no\n"
+    "symbolic link: see docs/jobs.md, \"A shared queue\".",
     {{"drain", false, "exit when nothing is pending (default: keep polling)"},
      {"poll", true, "seconds between looks at DIR/pending when idle (default 5)"},
      {"stale-after", true, "seconds after which a claim that shows no sign of life is taken back (default 600)"},
-     {"force", false, "rerun jobs even when their manifest shows them up to date"}},
+     {"force", false, "rerun jobs even when their manifest shows them up to date"},
+     {"input-root", true, "read inputs only below these directories (DIR[:DIR...]), following no link"},
+     {"output-root", true, "write outputs only below these directories (DIR[:DIR...]), following no link"}},
     1, 1, runQueue});
 
 }  // namespace

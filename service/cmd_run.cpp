@@ -2,6 +2,7 @@
 #include <sstream>
 
 #include "cli.h"
+#include "confine.h"
 #include "prtbake/error.h"
 #include "progress.h"
 #include "runner.h"
@@ -31,6 +32,9 @@ int runRun(const CommandLine& cl) {
     // Job k belongs to shard k mod N over the whole file: a subset would renumber it.
     if (cl.has("jobs")) throw UsageError("--shard", "cannot be combined with --jobs");
   }
+  if (cl.has("input-root") || cl.has("output-root"))
+    options.confinement = std::make_shared<jobs::Confinement>(jobs::splitRootList(cl.get("input-root")),
+                                                              jobs::splitRootList(cl.get("output-root")));
   jobs::Reporter reporter(cl.quiet(), cl.has("log-json"));
   jobs::Runner runner(options, reporter);
   std::vector<jobs::JobFileRef> files;
@@ -49,11 +53,14 @@ PRTBAKE_COMMAND(Command{
     "every job succeeded or was up to date, 1 otherwise, 2 for usage errors. See docs/jobs.md.\n"
     "With --shard I/N only shard I's part runs: job k of the file when k mod N = I, and its\n"
     "vertex range of every transport job with \"split\": true (then: prtbake merge; see\n"
-    "docs/scaleout.md).",
+    "docs/scaleout.md). With --input-root/--output-root, jobs read and write only below those\n"
+    "directories, through no symbolic link (docs/jobs.md, \"A shared queue\").",
     {{"force", false, "rerun jobs even when their manifest shows them up to date"},
      {"jobs", true, "run only the jobs with these ids (comma-separated)"},
      {"dry-run", false, "validate and print what would run, without running anything"},
-     {"shard", true, "I/N or auto/N: run shard I of N (auto: $SLURM_ARRAY_TASK_ID or $JOB_COMPLETION_INDEX)"}},
+     {"shard", true, "I/N or auto/N: run shard I of N (auto: $SLURM_ARRAY_TASK_ID or $JOB_COMPLETION_INDEX)"},
+     {"input-root", true, "read inputs only below these directories (DIR[:DIR...]), following no link"},
+     {"output-root", true, "write outputs only below these directories (DIR[:DIR...]), following no link"}},
     1, 1000000, runRun});
 
 }  // namespace

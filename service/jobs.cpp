@@ -5,11 +5,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <mutex>
 #include <sstream>
 
+#include "confine.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 
@@ -39,9 +41,38 @@ bool validId(const std::string& id) {
   });
 }
 
+// The files a glTF (JSON form) names by URI (buffers and images; not data: URIs), decoded
+// (%XX) and resolved against its directory as the loader resolves them. Empty when the file
+// cannot be read or parsed: the loader reports that when the job runs.
+std::vector<std::string> gltfExternalFiles(const std::string& path) {
+  std::vector<std::string> files;
+  try {
+    const json doc = json::parse(readFile(path));
+    for (const char* key : {"buffers", "images"})
+      if (doc.contains(key) && doc[key].is_array())
+        for (const auto& item : doc[key])
+          if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
+            const std::string uri = item["uri"].get<std::string>();
+            if (uri.rfind("data:", 0) == 0) continue;
+            std::string decoded;
+            for (size_t i = 0; i < uri.size(); ++i)
+              if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uint8_t(uri[i + 1])) && std::isxdigit(uint8_t(uri[i + 2]))) {
+                decoded += char(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+                i += 2;
+              } else {
+                decoded += uri[i];
+              }
+            files.push_back((fs::path(path).parent_path() / decoded).lexically_normal().string());
+          }
+  } catch (const std::exception&) {
+  }
+  return files;
+}
+
 class JobValidator {
  public:
-  JobValidator(Job& job, const fs::path& baseDir) : job_(job), baseDir_(baseDir) {}
+  JobValidator(Job& job, const fs::path& baseDir, const Confinement* confinement)
+      : job_(job), baseDir_(baseDir), confinement_(confinement) {}
 
   void validate(const json& j, size_t position) {
     job_.label = "#" + std::to_string(position);
@@ -75,6 +106,7 @@ class JobValidator {
     for (const auto& k : t.keys) {
       if (k.kind != ValueKind::Path || !params[k.name].is_string()) continue;
       params[k.name] = resolve(params[k.name].get<std::string>());
+      if (!confinedInput(k.name, params[k.name].get<std::string>())) continue;
       struct stat st {};
       if (::stat(params[k.name].get<std::string>().c_str(), &st) != 0)
         problem(k.name, "file does not exist: " + params[k.name].get<std::string>());
@@ -85,12 +117,26 @@ class JobValidator {
       for (const auto& [key, what] : t.check(j, params)) problem(key, what);
     job_.params = params;
     if (!job_.outputs.empty()) job_.manifestPath = job_.outputs.front().path + ".manifest.json";
+    if (confinement_ && !job_.manifestPath.empty())
+      if (const std::string why = confinement_->checkOutput(job_.manifestPath); !why.empty()) problem("manifest", why);
   }
 
  private:
   void problem(const std::string& key, const std::string& what) { job_.problems.push_back({job_.label, key, what}); }
 
   std::string resolve(const std::string& p) const { return (baseDir_ / p).lexically_normal().string(); }
+
+  // Under confinement, a path outside the input roots is refused before anything looks at it
+  // (not even whether it exists); a glTF's external files are checked as well.
+  bool confinedInput(const std::string& key, const std::string& path) {
+    if (!confinement_) return true;
+    std::string why = confinement_->checkInput(path);
+    if (why.empty() && fs::path(path).extension() == ".gltf")
+      for (const auto& file : gltfExternalFiles(path))
+        if (why = confinement_->checkInput(file); !why.empty()) break;
+    if (!why.empty()) problem(key, why);
+    return why.empty();
+  }
 
   void checkId(const json& j) {
     auto it = j.find("id");
@@ -144,6 +190,7 @@ class JobValidator {
       return;
     }
     const std::string path = resolve(it->get<std::string>());
+    if (!confinedInput("input", path)) return;
     struct stat st {};
     if (::stat(path.c_str(), &st) != 0) {
       problem("input", "file does not exist: " + path);
@@ -187,6 +234,11 @@ class JobValidator {
         continue;
       }
       const std::string path = resolve(o->get<std::string>());
+      if (confinement_)
+        if (const std::string why = confinement_->checkOutput(path); !why.empty()) {
+          problem(key, why);
+          continue;
+        }
       struct stat st {};
       if (kind != "dir" && ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {  // "dir": an ibl package
         problem(key, "is a directory: " + path);
@@ -204,6 +256,7 @@ class JobValidator {
 
   Job& job_;
   fs::path baseDir_;
+  const Confinement* confinement_;
 };
 
 }  // namespace
@@ -280,11 +333,17 @@ int jsonNestingDepth(const std::string& text) {
 
 }  // namespace
 
-JobFile loadJobFile(const std::string& path, const std::string& baseDir) {
+JobFile loadJobFile(const std::string& path, const std::string& baseDir, const JobFileLimits& limits) {
   JobFile file;
   file.path = path;
   std::string text;
   try {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && size_t(st.st_size) > limits.maxBytes) {
+      file.fileProblems.push_back({"", "", std::to_string(st.st_size) + " bytes, more than the limit of " +
+                                               std::to_string(limits.maxBytes) + " for a job file"});
+      return file;
+    }
     text = readFile(path);
   } catch (const Error& e) {
     file.fileProblems.push_back({"", "", e.detail()});
@@ -316,13 +375,18 @@ JobFile loadJobFile(const std::string& path, const std::string& baseDir) {
     file.fileProblems.push_back({"", "jobs", jobs == root.end() ? "missing" : "expected an array, got " + shown(*jobs)});
     return file;
   }
+  if (jobs->size() > limits.maxJobs) {
+    file.fileProblems.push_back({"", "jobs", std::to_string(jobs->size()) + " jobs, more than the limit of " +
+                                                 std::to_string(limits.maxJobs) + " for a job file"});
+    return file;
+  }
   const fs::path base = baseDir.empty() ? fs::absolute(path).parent_path() : fs::absolute(baseDir);
   std::map<std::string, std::string> firstPosition;  // id → label of its first job
   size_t position = 0;
   for (const auto& j : *jobs) {
     Job job;
     job.jobFile = path;
-    JobValidator(job, base).validate(j, ++position);
+    JobValidator(job, base, limits.confinement).validate(j, ++position);
     if (!job.id.empty()) {
       auto [it, inserted] = firstPosition.emplace(job.id, "#" + std::to_string(position));
       if (!inserted)

@@ -150,10 +150,21 @@ struct JobFile {
   std::vector<Problem> fileProblems;  // unreadable file, JSON syntax error, bad top level
 };
 
+class Confinement;
+
+// What a job file may be and do, for files that someone else wrote (docs/jobs.md, "A shared
+// queue"): its size and job count, checked before it is parsed, and the roots its jobs may
+// read and write (confine.h; none: anywhere).
+struct JobFileLimits {
+  size_t maxBytes = size_t(16) << 20;
+  size_t maxJobs = 10000;
+  const Confinement* confinement = nullptr;
+};
+
 // Loads and validates `path`. Relative paths inside resolve against `baseDir`
 // (default: the job file's own directory). Never throws for bad content: every
 // problem is recorded in the result.
-JobFile loadJobFile(const std::string& path, const std::string& baseDir = "");
+JobFile loadJobFile(const std::string& path, const std::string& baseDir = "", const JobFileLimits& limits = {});
 
 // Every file a job read, absolute: the product's list, or else the input itself
 // (every regular file in it when it is a directory).

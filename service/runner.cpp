@@ -14,6 +14,7 @@
 #include <iomanip>
 #include <iostream>
 
+#include "confine.h"
 #include "manifest.h"
 #include "progress.h"
 #include "prtbake/atomic_file.h"
@@ -44,35 +45,81 @@ void fsyncDir(const std::string& dir) {
   }
 }
 
+std::string baseOf(const std::string& path) { return fs::path(path).filename().string(); }
+
+}  // namespace
+
+// The directories a job writes to. Under output confinement (confine.h) each is opened once
+// from its root without following links (and created), and every path the runner writes,
+// renames or removes there is pinned to that descriptor; otherwise paths are used as named.
+class OutputDirs {
+ public:
+  OutputDirs(const Job& job, const Confinement* confinement) {
+    for (const auto& o : job.outputs) dirs_.emplace(dirOf(o.path), nullptr);
+    if (confinement && confinement->confinesOutputs())
+      for (auto& [dir, pinned] : dirs_) pinned = confinement->openOutputDir(dir);
+  }
+  void create() const {
+    for (const auto& [dir, pinned] : dirs_)
+      if (!pinned) fs::create_directories(dir);
+  }
+  std::set<std::string> pinnedDirs() const {
+    std::set<std::string> dirs;
+    for (const auto& [dir, pinned] : dirs_) dirs.insert(pinned ? pinned->pinnedPath("") : dir);
+    return dirs;
+  }
+  std::string pinned(const std::string& path) const {
+    const auto it = dirs_.find(dirOf(path));
+    return it == dirs_.end() || !it->second ? path : it->second->pinnedPath(baseOf(path));
+  }
+
+ private:
+  std::map<std::string, std::unique_ptr<Confinement::Dir>> dirs_;
+};
+
+namespace {
+
 // The outputs of one job while it runs. The product writes each output to a
 // staging name in the output's directory (".stage.prtbake-tmp.<pid>.<n>.<kind><ext>":
 // hidden, short, with the output's extension for writers that look at it, and
-// recognised by removeStaleTempFiles after a kill);
-// commit() renames them all to their final names, or removes every one of them
-// (and any already renamed) when a rename fails. Uncommitted staging files are
-// removed on destruction, so a failed job leaves nothing behind.
+// recognised by removeStaleTempFiles after a kill); commit() renames them all to their
+// final names. The previous version of each output stays reachable under a hidden name
+// (".<name>.prtbake-tmp.<pid>.prev": a second link of a file, the moved-aside directory of
+// a package), and so does the old manifest (setAside), until keep() drops them once the new
+// manifest is written. Until then restore(), also run on destruction, puts the previous
+// versions back and removes the new outputs that had none: a job that fails before or after
+// the renames (a manifest that cannot be written: a full disk, an I/O error) leaves the
+// previous version intact and no staging file behind.
 class StagedOutputs {
  public:
-  explicit StagedOutputs(const Job& job) {
+  StagedOutputs(const Job& job, const OutputDirs& dirs) {
     static int counter = 0;
     for (const auto& o : job.outputs) {
       const fs::path p(o.path);
       const std::string staging =
-          (p.parent_path() / (".stage.prtbake-tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++) +
-                              "." + o.kind + p.extension().string()))
-              .string();
+          dirs.pinned((p.parent_path() / (".stage.prtbake-tmp." + std::to_string(::getpid()) + "." +
+                                          std::to_string(counter++) + "." + o.kind + p.extension().string()))
+                          .string());
       paths_[o.kind] = staging;
-      order_.push_back({staging, o.path});
+      order_.push_back({staging, dirs.pinned(o.path), o.path});
     }
   }
   ~StagedOutputs() {
     std::error_code ec;
-    for (const auto& [staging, final] : order_) fs::remove_all(staging, ec);
+    for (const auto& o : order_) fs::remove_all(o.staging, ec);
+    restore();
   }
   StagedOutputs(const StagedOutputs&) = delete;
   StagedOutputs& operator=(const StagedOutputs&) = delete;
 
   const std::map<std::string, std::string>& paths() const { return paths_; }
+
+  // The output a product's error names by its staging path, under its own name.
+  [[noreturn]] void rethrowNamed(const OutputError& e) const {
+    for (const auto& o : order_)
+      if (e.subject().rfind(o.staging, 0) == 0) throw OutputError(o.shown, e.detail());
+    throw e;
+  }
 
   void checkAllWritten() const {
     struct stat st {};
@@ -81,39 +128,102 @@ class StagedOutputs {
         throw OutputError("outputs." + kind, "the product did not write this output");
   }
 
+  // Moves the old manifest (`pinned`, named `shown`) aside: it must never vouch for a mixed set.
+  void setAside(const std::string& pinned, const std::string& shown) {
+    const std::string aside = asideName(pinned);
+    if (::rename(pinned.c_str(), aside.c_str()) == 0) previous_.push_back({aside, pinned, false});
+    else if (errno != ENOENT)
+      throw OutputError(shown, std::string("cannot move the old manifest aside: ") + std::strerror(errno));
+  }
+
   void commit() {
-    std::vector<std::string> committed;
     std::error_code ec;
-    for (const auto& [staging, final] : order_) {
+    for (const auto& [staging, final, shown] : order_) {
       // A directory output (an ibl package) replaces the previous one: that is moved aside
-      // first (rename cannot replace a non-empty directory) and removed after.
-      std::string aside;
-      if (fs::is_directory(staging, ec) && fs::is_directory(final, ec)) {
-        const fs::path f(final);
-        aside = (f.parent_path() / ("." + f.filename().string() + ".prtbake-tmp." + std::to_string(::getpid()) + ".old"))
-                    .string();
-        fs::remove_all(aside, ec);
-        if (::rename(final.c_str(), aside.c_str()) != 0) aside.clear();
+      // first (rename cannot replace a non-empty directory). A file stays in place, with a
+      // second link, until the new one replaces it.
+      const bool dir = fs::is_directory(staging, ec) && fs::is_directory(fs::symlink_status(final, ec));
+      const std::string aside = asideName(final);
+      fs::remove_all(aside, ec);
+      if ((dir ? ::rename(final.c_str(), aside.c_str()) : ::link(final.c_str(), aside.c_str())) == 0) {
+        previous_.push_back({aside, final, dir});
+      } else if (errno != ENOENT && errno != EPERM && errno != EOPNOTSUPP && errno != EMLINK) {
+        // ENOENT: no previous version; the others: no second link on this filesystem, so the
+        // previous version is replaced without a copy kept; ENOSPC, EIO, ...: fail now.
+        const std::string why = std::strerror(errno);
+        restore();
+        throw OutputError(shown, "cannot keep the previous version: " + why);
       }
       if (::rename(staging.c_str(), final.c_str()) != 0) {
         const std::string why = std::strerror(errno);
-        if (!aside.empty()) ::rename(aside.c_str(), final.c_str());
-        for (const auto& c : committed) fs::remove_all(c, ec);
-        throw OutputError(final, "rename failed: " + why);
+        restore();
+        throw OutputError(shown, "rename failed: " + why);
       }
-      if (!aside.empty()) fs::remove_all(aside, ec);
-      committed.push_back(final);
+      committed_.push_back(final);
     }
     std::set<std::string> dirs;
-    for (const auto& c : committed) dirs.insert(dirOf(c));
+    for (const auto& c : committed_) dirs.insert(dirOf(c));
     for (const auto& d : dirs) fsyncDir(d);
-    order_.clear();  // nothing left to clean up
+    order_.clear();  // no staging file left
+  }
+
+  // The new outputs and their manifest are in place: the previous versions go.
+  void keep() {
+    std::error_code ec;
+    for (const auto& p : previous_) fs::remove_all(p.aside, ec);
+    previous_.clear();
+    committed_.clear();
   }
 
  private:
-  std::map<std::string, std::string> paths_;                 // kind → staging path
-  std::vector<std::pair<std::string, std::string>> order_;   // staging, final
+  struct Staged {
+    std::string staging, final, shown;  // the product's path, the final path (both pinned), the name
+  };
+  struct Previous {
+    std::string aside, final;
+    bool dir;
+  };
+
+  static std::string asideName(const std::string& path) {
+    const fs::path f(path);
+    return (f.parent_path() / ("." + f.filename().string() + ".prtbake-tmp." + std::to_string(::getpid()) + ".prev"))
+        .string();
+  }
+
+  // The previous versions back (the manifest last), the new outputs that had none removed.
+  void restore() {
+    std::error_code ec;
+    std::set<std::string> restored;
+    for (auto it = previous_.rbegin(); it != previous_.rend(); ++it) {
+      if (it->dir) fs::remove_all(it->final, ec);
+      ::rename(it->aside.c_str(), it->final.c_str());
+      ::unlink(it->aside.c_str());  // still there when both names were links of the same file
+      restored.insert(it->final);
+    }
+    for (const auto& c : committed_)
+      if (!restored.count(c)) fs::remove_all(c, ec);
+    previous_.clear();
+    committed_.clear();
+  }
+
+  std::map<std::string, std::string> paths_;  // kind → staging path
+  std::vector<Staged> order_;
+  std::vector<Previous> previous_;     // set aside, in order
+  std::vector<std::string> committed_;  // outputs renamed into place
 };
+
+// Under input confinement, the job's inputs are checked again just before it runs (the
+// queue may have held it a while) and every file the product read, after it ran.
+void checkConfinedInputs(const Confinement* confinement, const Job& job, const std::vector<std::string>& read) {
+  if (!confinement || !confinement->confinesInputs()) return;
+  std::vector<std::string> paths = read;
+  if (!job.input.empty()) paths.push_back(job.input);
+  for (const auto& k : job.type->keys)
+    if (k.kind == ValueKind::Path && job.params.contains(k.name) && job.params[k.name].is_string())
+      paths.push_back(job.params[k.name].get<std::string>());
+  for (const auto& p : paths)
+    if (const std::string why = confinement->checkInput(p); !why.empty()) throw InputError("input", why);
+}
 
 // With --shard, processes on other hosts write to the same directories at the same time,
 // and the pid in a temp file's name says nothing about a process on another host: a
@@ -181,7 +291,9 @@ RunTotals Runner::run(const std::vector<JobFileRef>& refs) {
   RunTotals totals;
   std::vector<JobFile> files;
   for (const auto& ref : refs) {
-    JobFile f = loadJobFile(ref.path, ref.baseDir);
+    JobFileLimits limits = options_.limits;
+    limits.confinement = options_.confinement.get();
+    JobFile f = loadJobFile(ref.path, ref.baseDir, limits);
     const std::string display = ref.display.empty() ? ref.path : ref.display;
     f.path = display;
     for (auto& job : f.jobs) job.jobFile = display;
@@ -250,31 +362,40 @@ void Runner::sweepTempFiles(const std::set<std::string>& dirs) {
       reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
 }
 
-void Runner::execute(const Job& job, const std::set<std::string>& dirs, Clock::time_point t0) {
-  for (const auto& d : dirs) fs::create_directories(d);
-  StagedOutputs staged(job);
+void Runner::execute(const Job& job, const OutputDirs& dirs, Clock::time_point t0) {
+  dirs.create();
+  checkConfinedInputs(options_.confinement.get(), job, {});
+  StagedOutputs staged(job, dirs);
   ExecContext ctx{[this]() -> Runtime& { return runtime(); }, staged.paths()};
   const double startupBefore = runtime_ ? 0.0 : -1.0;
   const auto tRun = Clock::now();
-  const ExecResult result = job.type->execute(job, ctx);
+  ExecResult result;
+  try {
+    result = job.type->execute(job, ctx);
+  } catch (const OutputError& e) {
+    staged.rethrowNamed(e);
+  }
   const double runSeconds = secondsSince(tRun);
   staged.checkAllWritten();
-  const auto inputs = hashInputs(filesRead(job, result.inputFiles), result.inputHashes);
+  const std::vector<std::string> read = filesRead(job, result.inputFiles);
+  checkConfinedInputs(options_.confinement.get(), job, read);
+  const auto inputs = hashInputs(read, result.inputHashes);
 
-  // Commit: the old manifest goes first (so it never vouches for a mixed set),
-  // then the outputs as a set, then the new manifest, last.
-  if (::unlink(job.manifestPath.c_str()) != 0 && errno != ENOENT)
-    throw OutputError(job.manifestPath, std::string("cannot remove the old manifest: ") + std::strerror(errno));
+  // Commit: the old manifest goes aside first (so it never vouches for a mixed set),
+  // then the outputs as a set, then the new manifest, last. Until that is written, a
+  // failure (an exception out of here) puts the previous outputs and manifest back.
+  const std::string manifestPath = dirs.pinned(job.manifestPath);
+  staged.setAside(manifestPath, job.manifestPath);
   staged.commit();
   json timings = {{"run_seconds", runSeconds}, {"total_seconds", secondsSince(t0)}};
   if (startupBefore < 0 && runtime_) timings["runtime_startup_seconds"] = runtimeStartupSeconds_;
   const json manifest = makeManifest(job, inputs, runtime_ ? runtime_->deviceLabel() : "", timings, result.report);
   try {
-    writeFileAtomic(job.manifestPath, manifest.dump(2) + "\n");
-  } catch (...) {
-    for (const auto& o : job.outputs) ::unlink(o.path.c_str());
-    throw;
+    writeFileAtomic(manifestPath, manifest.dump(2) + "\n");
+  } catch (const OutputError& e) {
+    throw OutputError(job.manifestPath, e.detail());
   }
+  staged.keep();
 }
 
 void Runner::runJob(const Job& job, RunTotals& totals) {
@@ -305,9 +426,14 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
     return;
   }
   // Temp and staging files of killed runs, in every directory this job writes to.
-  std::set<std::string> dirs;
-  for (const auto& o : job.outputs) dirs.insert(dirOf(o.path));
-  if (!options_.dryRun) sweepTempFiles(dirs);
+  std::unique_ptr<OutputDirs> dirs;
+  try {
+    dirs = std::make_unique<OutputDirs>(job, options_.dryRun ? nullptr : options_.confinement.get());
+  } catch (const std::exception& e) {
+    fail(reasonOf(job, e));
+    return;
+  }
+  if (!options_.dryRun) sweepTempFiles(dirs->pinnedDirs());
 
   if (!options_.force) {
     const std::string why = whyOutOfDate(job);
@@ -333,7 +459,7 @@ void Runner::runJob(const Job& job, RunTotals& totals) {
   }
 
   try {
-    execute(job, dirs, t0);
+    execute(job, *dirs, t0);
   } catch (const cl::Error& e) {
     fail(describeClError(e, runtime_ ? runtime_->deviceLabel() : lastDeviceLabel()));
     return;

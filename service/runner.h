@@ -3,6 +3,7 @@
 // runtime, commits each job's outputs as a set and writes its manifest last.
 #pragma once
 
+#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
@@ -14,6 +15,7 @@
 namespace prtbake::jobs {
 
 class Progress;
+class OutputDirs;
 
 // Where status lines, errors and JSON events go. Status lines ("[ok] id (1.23 s)")
 // go to stdout unless quiet; errors ("prtbake: error: ...") to stderr always;
@@ -43,6 +45,8 @@ struct RunOptions {
   std::string device;             // --device spec for the runtime
   bool progress = false;          // "[3/20] id ... ETA" on stderr (see progress.h)
   ShardSpec shard;                // --shard I/N: run only shard I's part (shard.h)
+  JobFileLimits limits;           // a job file's size and job count (its confinement: below)
+  std::shared_ptr<const Confinement> confinement;  // roots for inputs and outputs (confine.h; none: anywhere)
 };
 
 struct JobFileRef {
@@ -76,7 +80,7 @@ class Runner {
   void sweepTempFiles(const std::set<std::string>& dirs);
   // Runs a valid job into staged outputs and commits them with their manifest (throws on
   // failure, leaving the previous outputs' manifest gone and no new output in place).
-  void execute(const Job& job, const std::set<std::string>& dirs, std::chrono::steady_clock::time_point t0);
+  void execute(const Job& job, const OutputDirs& dirs, std::chrono::steady_clock::time_point t0);
   Runtime& runtime();
 
   RunOptions options_;

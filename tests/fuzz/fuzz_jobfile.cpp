@@ -4,6 +4,14 @@
 // Input: two parts (fuzz_target.h's splitParts): the job file, written as job.json
 // beside an input file in.exr; and the manifest, written as out.json.manifest.json,
 // which is the manifest of a job whose first output is "out.json".
+// The file is loaded a second time confined, as a shared queue loads it (confine.h): roots
+// in/ and out/ below the scratch directory, a link in each, small limits; every job accepted
+// then reads and writes only below its roots.
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "confine.h"
 #include "fuzz_target.h"
 #include "jobs.h"
 #include "manifest.h"
@@ -32,6 +40,32 @@ PRTBAKE_FUZZ_TARGET(jobfile) {
     // Every valid job reaches the manifest check; only this one names the fuzzed manifest.
     const std::string manifest = job.manifestPath;
     fuzz::expectCleanFailure(manifest, [&] { jobs::whyOutOfDate(job); });
+  }
+
+  const std::string dir = fuzz::scratchDir();
+  std::filesystem::create_directories(dir + "/in");
+  std::filesystem::create_directories(dir + "/out");
+  fuzz::writeScratch("in/in.exr", "not read");
+  ::symlink("..", (dir + "/in/up").c_str());
+  ::symlink("..", (dir + "/out/up").c_str());
+  const jobs::Confinement confinement({dir + "/in"}, {dir + "/out"});
+  jobs::JobFileLimits limits;
+  limits.maxBytes = 4096;
+  limits.maxJobs = 8;
+  limits.confinement = &confinement;
+  jobs::JobFile confined;
+  if (!fuzz::expectCleanFailure(path, [&] { confined = jobs::loadJobFile(path, dir + "/out", limits); }))
+    fuzz::fail("loadJobFile threw under confinement");
+  if (confined.jobs.size() > limits.maxJobs) fuzz::fail("more jobs than the limit");
+  auto below = [](const std::string& p, const std::string& root) {
+    return p.compare(0, root.size() + 1, root + "/") == 0 && p.find("/up/") == std::string::npos &&
+           p.find("/../") == std::string::npos;
+  };
+  for (const auto& job : confined.jobs) {
+    if (!job.valid()) continue;
+    if (!job.input.empty() && !below(job.input, dir + "/in")) fuzz::fail("confined job reads " + job.input);
+    for (const auto& o : job.outputs)
+      if (!below(o.path, dir + "/out")) fuzz::fail("confined job writes " + o.path);
   }
   return 0;
 }

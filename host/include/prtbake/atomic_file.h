@@ -27,6 +27,9 @@ class AtomicFile {
 
   const std::string& path() const { return path_; }
   const std::string& tempPath() const { return tempPath_; }
+  // For writers that open a file by name (OpenEXR): a name of this very temp file
+  // (/proc/self/fd/N), which no rename or link in its directory can redirect.
+  std::string writerPath() const;
 
  private:
   std::string path_, tempPath_;

@@ -41,10 +41,20 @@ const char* version() { return PRTBAKE_VERSION; }
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   if (path_.empty()) throw OutputError("output", "empty output path");
-  tempPath_ = dirOf(path_) + "/." + baseOf(path_) + kTempMarker + std::to_string(getpid()) + "." +
-              std::to_string(gTempCounter++);
-  fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw OutputError(path_, std::string("cannot create output: ") + std::strerror(errno));
+  // O_EXCL | O_NOFOLLOW: a file or link that someone placed at the predictable temp name is
+  // never written through; the next name is tried instead.
+  for (int attempt = 0; fd_ < 0; ++attempt) {
+    tempPath_ = dirOf(path_) + "/." + baseOf(path_) + kTempMarker + std::to_string(getpid()) + "." +
+                std::to_string(gTempCounter++);
+    fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+    if (fd_ < 0 && (errno != EEXIST || attempt == 100))
+      throw OutputError(path_, std::string("cannot create output: ") + std::strerror(errno));
+  }
+}
+
+std::string AtomicFile::writerPath() const {
+  static const bool procFd = ::access("/proc/self/fd", X_OK) == 0;
+  return procFd && fd_ >= 0 ? "/proc/self/fd/" + std::to_string(fd_) : tempPath_;
 }
 
 AtomicFile::~AtomicFile() {

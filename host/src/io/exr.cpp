@@ -23,8 +23,8 @@ void writeExr(const std::string& path, int width, int height, const std::vector<
               const ExrWriteOptions& options) {
   if (width <= 0 || height <= 0 || channels.empty())
     throw OutputError(path, "nothing to write (empty image)");
-  // AtomicFile owns the temp name and its removal on failure; OpenEXR writes the
-  // temp path itself, then commit() fsyncs and renames it.
+  // AtomicFile owns the temp file and its removal on failure; OpenEXR writes it through
+  // writerPath(), then commit() fsyncs and renames it.
   AtomicFile out(path);
   try {
     Imf::Header header(width, height);
@@ -49,7 +49,7 @@ void writeExr(const std::string& path, int width, int height, const std::vector<
       }
     }
     {
-      Imf::OutputFile file(out.tempPath().c_str(), header);
+      Imf::OutputFile file(out.writerPath().c_str(), header);
       file.setFrameBuffer(fb);
       file.writePixels(height);
     }

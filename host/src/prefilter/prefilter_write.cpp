@@ -280,7 +280,7 @@ void writePrefilterExr(const std::string& path, const PrefilterResult& r, bool h
     header.insert("prtbake:roughness", Imf::StringAttribute(rough));
     const Imf::PixelType type = half16 ? Imf::HALF : Imf::FLOAT;
     for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(type));
-    Imf::TiledOutputFile file(out.tempPath().c_str(), header);
+    Imf::TiledOutputFile file(out.writerPath().c_str(), header);
     // Level images in OpenEXR's layout, RGB float; levels past the schedule are 2×2 box
     // filters of the level above (plain image mip-mapping; faces stay apart while N_l ≥ 2).
     std::vector<float> image;
