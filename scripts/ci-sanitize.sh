@@ -2,10 +2,10 @@
 # Builds the loader, job and corpus tests (and the CLI they run) with
 # AddressSanitizer + UndefinedBehaviorSanitizer in build-sanitize/ and runs them.
 #
-# Scope: the environment loaders, job files, the runner, the bad-input corpus and every
-# fuzz target over its seeds and regression inputs (test_env_load, test_env_files,
-# test_jobs, test_corpus, test_fuzz_replay). These run the CLI, which is built with the
-# sanitizers too, so every corpus case is decoded under ASan/UBSan.
+# Scope: the environment loaders, job files, the runner and its confinement, the bad-input
+# corpus and every fuzz target over its seeds and regression inputs (test_env_load,
+# test_env_files, test_jobs, test_confine, test_corpus, test_fuzz_replay). These run the
+# CLI, which is built with the sanitizers too, so every corpus case is decoded under ASan/UBSan.
 # OpenCL under ASan: these tests create OpenCL contexts (PoCL), in the test
 # processes and in the CLI. With Debian's PoCL 3.1 and ocl-icd, LeakSanitizer
 # reports no leaks and ASan nothing inside the ICD, so no suppressions are used
@@ -23,7 +23,7 @@ start=$(date +%s)
 
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRTBAKE_SANITIZE=ON -DPRTBAKE_BUILD_BENCH=OFF -DPRTBAKE_PYTHON=OFF \
   ${PRTBAKE_CMAKE_ARGS:-} >/dev/null
-cmake --build "$build" -j"$jobs" --target prtbake_cli test_env_load test_env_files test_jobs test_corpus test_fuzz_replay
+cmake --build "$build" -j"$jobs" --target prtbake_cli test_env_load test_env_files test_jobs test_confine test_corpus test_fuzz_replay
 
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1"
 export LSAN_OPTIONS="suppressions=$root/tests/sanitizer/lsan.supp:print_suppressions=0"
@@ -32,7 +32,7 @@ export POCL_CACHE_DIR="$build/pocl-cache"
 # The test executables are run directly (ctest -R matches test-case names,
 # not executables); each runs all of its cases in one process.
 failed=""
-for t in test_env_load test_env_files test_jobs test_corpus test_fuzz_replay; do
+for t in test_env_load test_env_files test_jobs test_confine test_corpus test_fuzz_replay; do
   echo "== $t (ASan+UBSan)"
   "$build/tests/$t" "$@" || failed="$failed $t"
 done

@@ -209,6 +209,14 @@ std::string Confinement::Dir::pinnedPath(const std::string& name) const {
   return "/proc/self/fd/" + std::to_string(fd_) + (name.empty() ? "" : "/" + name);
 }
 
+std::unique_ptr<Confinement::Dir> Confinement::Dir::makeSubdir(const std::string& name) const {
+  int fd = -1;
+  if (::mkdirat(fd_, name.c_str(), 0777) == 0)
+    fd = ::openat(fd_, name.c_str(), O_PATH | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) throw OutputError(pinnedPath(name), std::string("cannot create the directory: ") + std::strerror(errno));
+  return std::make_unique<Dir>(fd);
+}
+
 std::unique_ptr<Confinement::Dir> Confinement::openOutputDir(const std::string& dir) const {
   std::string rest;
   const Root* root = rootOf(outputs_, dir, &rest);

@@ -46,6 +46,8 @@ class Confinement {
     Dir& operator=(const Dir&) = delete;
     // A path that names `name` in this very directory, whatever happens to its path later.
     std::string pinnedPath(const std::string& name) const;
+    // Creates the directory `name` in this one and opens it, following no link.
+    std::unique_ptr<Dir> makeSubdir(const std::string& name) const;
 
    private:
     int fd_;

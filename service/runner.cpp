@@ -72,17 +72,31 @@ class OutputDirs {
     const auto it = dirs_.find(dirOf(path));
     return it == dirs_.end() || !it->second ? path : it->second->pinnedPath(baseOf(path));
   }
+  // Creates the directory `name` in `dir` (one of the job's); returns a path to it, pinned to
+  // its own descriptor under confinement.
+  std::string makeStagingDir(const std::string& dir, const std::string& name) {
+    const auto& pinned = dirs_.at(dir);
+    if (pinned) {
+      staging_.push_back(pinned->makeSubdir(name));
+      return staging_.back()->pinnedPath("");
+    }
+    const std::string path = (fs::path(dir) / name).string();
+    if (::mkdir(path.c_str(), 0777) != 0)
+      throw OutputError(path, std::string("cannot create the directory: ") + std::strerror(errno));
+    return path;
+  }
 
  private:
   std::map<std::string, std::unique_ptr<Confinement::Dir>> dirs_;
+  std::vector<std::unique_ptr<Confinement::Dir>> staging_;
 };
 
 namespace {
 
-// The outputs of one job while it runs. The product writes each output to a
-// staging name in the output's directory (".stage.prtbake-tmp.<pid>.<n>.<kind><ext>":
-// hidden, short, with the output's extension for writers that look at it, and
-// recognised by removeStaleTempFiles after a kill); commit() renames them all to their
+// The outputs of one job while it runs. The product writes each output under its own name
+// in a staging directory beside it (".stage.prtbake-tmp.<pid>.<n>/<name>": hidden, and
+// recognised by removeStaleTempFiles after a kill), so that a writer that records a file's
+// name (a sidecar naming its image) records the final one; commit() renames them all to their
 // final names. The previous version of each output stays reachable under a hidden name
 // (".<name>.prtbake-tmp.<pid>.prev": a second link of a file, the moved-aside directory of
 // a package), and so does the old manifest (setAside), until keep() drops them once the new
@@ -92,21 +106,21 @@ namespace {
 // previous version intact and no staging file behind.
 class StagedOutputs {
  public:
-  StagedOutputs(const Job& job, const OutputDirs& dirs) {
+  StagedOutputs(const Job& job, OutputDirs& dirs) {
     static int counter = 0;
     for (const auto& o : job.outputs) {
       const fs::path p(o.path);
-      const std::string staging =
-          dirs.pinned((p.parent_path() / (".stage.prtbake-tmp." + std::to_string(::getpid()) + "." +
-                                          std::to_string(counter++) + "." + o.kind + p.extension().string()))
-                          .string());
+      const std::string name = ".stage.prtbake-tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+      // Removed through its parent (a link swapped in for it is removed, not followed).
+      stagingDirs_.push_back(dirs.pinned((p.parent_path() / name).string()));
+      const std::string staging = dirs.makeStagingDir(p.parent_path().string(), name) + "/" + p.filename().string();
       paths_[o.kind] = staging;
       order_.push_back({staging, dirs.pinned(o.path), o.path});
     }
   }
   ~StagedOutputs() {
     std::error_code ec;
-    for (const auto& o : order_) fs::remove_all(o.staging, ec);
+    for (const auto& d : stagingDirs_) fs::remove_all(d, ec);
     restore();
   }
   StagedOutputs(const StagedOutputs&) = delete;
@@ -161,6 +175,8 @@ class StagedOutputs {
       }
       committed_.push_back(final);
     }
+    for (const auto& d : stagingDirs_) fs::remove_all(d, ec);
+    stagingDirs_.clear();
     std::set<std::string> dirs;
     for (const auto& c : committed_) dirs.insert(dirOf(c));
     for (const auto& d : dirs) fsyncDir(d);
@@ -207,6 +223,7 @@ class StagedOutputs {
   }
 
   std::map<std::string, std::string> paths_;  // kind → staging path
+  std::vector<std::string> stagingDirs_;
   std::vector<Staged> order_;
   std::vector<Previous> previous_;     // set aside, in order
   std::vector<std::string> committed_;  // outputs renamed into place
@@ -362,7 +379,7 @@ void Runner::sweepTempFiles(const std::set<std::string>& dirs) {
       reporter_.event({{"event", "stale_temp_removed"}, {"dir", d}, {"count", n}});
 }
 
-void Runner::execute(const Job& job, const OutputDirs& dirs, Clock::time_point t0) {
+void Runner::execute(const Job& job, OutputDirs& dirs, Clock::time_point t0) {
   dirs.create();
   checkConfinedInputs(options_.confinement.get(), job, {});
   StagedOutputs staged(job, dirs);

@@ -80,7 +80,7 @@ class Runner {
   void sweepTempFiles(const std::set<std::string>& dirs);
   // Runs a valid job into staged outputs and commits them with their manifest (throws on
   // failure, leaving the previous outputs' manifest gone and no new output in place).
-  void execute(const Job& job, const OutputDirs& dirs, std::chrono::steady_clock::time_point t0);
+  void execute(const Job& job, OutputDirs& dirs, std::chrono::steady_clock::time_point t0);
   Runtime& runtime();
 
   RunOptions options_;

@@ -343,3 +343,18 @@ TEST_CASE("run: valid jobs run beside invalid ones, which leave nothing", "[jobs
   CHECK_FALSE(fileExists(dir + "/out/misspelt.json"));
   CHECK_THAT(r.output, Catch::Contains("3 jobs: 1 ok, 0 skipped, 2 failed"));
 }
+
+// A job's outputs are staged under their own names (in a hidden directory beside them), so
+// a sidecar that names its image names the final file, as the command's does.
+TEST_CASE("jobs: a sidecar names its image by the output's own name", "[jobs]") {
+  const std::string dir = tempDir("jobs-sidecar-name");
+  writeJobFile(dir + "/j.json", {{{"id", "lut"}, {"type", "lut"}, {"size", 8}, {"samples", 16},
+                                  {"outputs", {{"exr", "out/brdf.exr"}, {"json", "out/brdf.json"}}}}});
+  const CliResult r = runCli("run " + q(dir + "/j.json"));
+  INFO(r.output);
+  REQUIRE(r.exitCode == 0);
+  CHECK(json::parse(readText(dir + "/out/brdf.json"))["file"] == "brdf.exr");
+  size_t entries = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir + "/out")) entries += e.path().filename() != "";
+  CHECK(entries == 3);  // brdf.exr, brdf.json and the manifest: no staging directory left
+}
