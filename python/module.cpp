@@ -31,6 +31,7 @@
 #include "prtbake/runtime.h"
 #include "prtbake/sh_rotate.h"
 #include "prtbake/transport.h"
+#include "confine.h"
 #include "runner.h"
 
 namespace py = pybind11;
@@ -528,8 +529,18 @@ py::object iblProduct(const py::object& source, const py::object& dir, const py:
   return result("IblResult", f);
 }
 
+// A path or a sequence of paths (the roots of run), or none.
+std::vector<std::string> pathList(const py::object& o) {
+  std::vector<std::string> paths;
+  if (o.is_none()) return paths;
+  if (isPath(o)) return {pathOf(o)};
+  for (const py::handle& p : o.cast<py::sequence>()) paths.push_back(pathOf(p));
+  return paths;
+}
+
 py::object runJobs(const py::object& files, bool force, bool dryRun, const py::object& only, const py::object& shard,
-                   const std::string& deviceSpec, bool quiet, const py::object& progress) {
+                   const std::string& deviceSpec, bool quiet, const py::object& progress, const py::object& inputRoots,
+                   const py::object& outputRoots) {
   if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
     throw UsageError("progress", "must be a callable progress(stage, fraction) or None");
   std::vector<jobs::JobFileRef> refs;
@@ -545,6 +556,8 @@ py::object runJobs(const py::object& files, bool force, bool dryRun, const py::o
   if (!only.is_none())
     for (const py::handle& id : only.cast<py::sequence>()) options.only.insert(id.cast<std::string>());
   if (!shard.is_none()) options.shard = jobs::parseShardSpec(shard.cast<std::string>(), "shard");
+  if (!inputRoots.is_none() || !outputRoots.is_none())
+    options.confinement = std::make_shared<jobs::Confinement>(pathList(inputRoots), pathList(outputRoots));
   jobs::RunTotals t;
   ProgressScope scope(pythonHook(progress.is_none() ? nullptr : progress.ptr()));
   {
@@ -784,7 +797,8 @@ PYBIND11_MODULE(_prtbake, m) {
   m.def("prefilter", &prefilterProduct, py::arg("source"));
   m.def("ibl", &iblProduct, py::arg("source"), py::arg("out_dir"));
   m.def("run", &runJobs, py::arg("job_files"), py::kw_only(), py::arg("force") = false, py::arg("dry_run") = false,
-        py::arg("only") = py::none(), py::arg("shard") = py::none(), py::arg("device") = "", py::arg("quiet") = true, py::arg("progress") = py::none());
+        py::arg("only") = py::none(), py::arg("shard") = py::none(), py::arg("device") = "", py::arg("quiet") = true,
+        py::arg("progress") = py::none(), py::arg("input_root") = py::none(), py::arg("output_root") = py::none());
   m.def("read_exr", &readExrFile, py::arg("path"));
   m.def("preview_env", &previewEnv, py::arg("source"));
   m.def("preview_mesh", &previewMesh, py::arg("mesh"), py::arg("transport"), py::arg("radiance"), py::kw_only(),

@@ -203,6 +203,21 @@ def test_run_matches_the_command(tmp_path):
     assert (tmp_path / "a" / "lut.exr").read_bytes() == first
 
 
+def test_run_confined_to_roots(tmp_path):
+    """input_root / output_root as the command's --input-root / --output-root (docs/jobs.md)."""
+    (tmp_path / "out").mkdir()
+    (tmp_path / "secret").mkdir()
+    job = {"jobs": [{"id": "in", "type": "lut", "size": 8, "samples": 16, "outputs": {"exr": "out/a.exr"}},
+                    {"id": "escape", "type": "lut", "size": 8, "samples": 16, "outputs": {"exr": "secret/a.exr"}}]}
+    (tmp_path / "jobs.json").write_text(json.dumps(job))
+    r = prtbake.run(tmp_path / "jobs.json", output_root=tmp_path / "out")
+    assert (r.ok, r.failed) == (1, 1)
+    assert (tmp_path / "out" / "a.exr").exists()
+    assert list((tmp_path / "secret").iterdir()) == []
+    with pytest.raises(ValueError, match="--output-root"):
+        prtbake.run(tmp_path / "jobs.json", output_root=tmp_path / "missing")
+
+
 # --- keywords: the declaration's, with the command line's checks ---
 
 def test_keywords_are_the_commands_options():
