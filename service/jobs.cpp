@@ -41,13 +41,23 @@ bool validId(const std::string& id) {
   });
 }
 
-// The files a glTF (JSON form) names by URI (buffers and images; not data: URIs), decoded
-// (%XX) and resolved against its directory as the loader resolves them. Empty when the file
-// cannot be read or parsed: the loader reports that when the job runs.
+// The files a glTF or GLB (by its extension, any case, as loadMesh dispatches) names by URI
+// (buffers and images; not data: URIs), decoded (%XX) and resolved against its directory as
+// the loader resolves them. Empty when the file cannot be read or parsed: the loader reports
+// that when the job runs.
 std::vector<std::string> gltfExternalFiles(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (auto& c : ext) c = char(std::tolower(uint8_t(c)));
+  if (ext != ".gltf" && ext != ".glb") return {};
   std::vector<std::string> files;
   try {
-    const json doc = json::parse(readFile(path));
+    std::string text = readFile(path);
+    if (text.size() >= 20 && text.compare(0, 4, "glTF") == 0) {  // GLB: the JSON chunk (the first)
+      const uint32_t length = uint32_t(uint8_t(text[12])) | uint32_t(uint8_t(text[13])) << 8 |
+                              uint32_t(uint8_t(text[14])) << 16 | uint32_t(uint8_t(text[15])) << 24;
+      text = text.substr(20, std::min<size_t>(length, text.size() - 20));
+    }
+    const json doc = json::parse(text);
     for (const char* key : {"buffers", "images"})
       if (doc.contains(key) && doc[key].is_array())
         for (const auto& item : doc[key])
@@ -131,7 +141,7 @@ class JobValidator {
   bool confinedInput(const std::string& key, const std::string& path) {
     if (!confinement_) return true;
     std::string why = confinement_->checkInput(path);
-    if (why.empty() && fs::path(path).extension() == ".gltf")
+    if (why.empty())
       for (const auto& file : gltfExternalFiles(path))
         if (why = confinement_->checkInput(file); !why.empty()) break;
     if (!why.empty()) problem(key, why);

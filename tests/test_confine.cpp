@@ -60,6 +60,12 @@ struct Scene {
     fs::create_symlink("../../secret/sky.exr", in + "/faces/nz.exr");
     writeText(in + "/scene.gltf",
               R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "..%2Fsecret%2Fb.bin", "byteLength": 64}]})");
+    // The same in a GLB's JSON chunk (an absolute URI this time).
+    std::string chunk = R"({"asset": {"version": "2.0"}, "buffers": [{"uri": ")" + secret + R"(/b.bin", "byteLength": 64}]})";
+    while (chunk.size() % 4) chunk += ' ';
+    auto le32 = [](uint32_t v) { return std::string{char(v), char(v >> 8), char(v >> 16), char(v >> 24)}; };
+    writeText(in + "/scene.glb", "glTF" + le32(2) + le32(uint32_t(20 + chunk.size())) + le32(uint32_t(chunk.size())) +
+                                     "JSON" + chunk);
   }
   std::string roots() const { return " --input-root " + q(in) + " --output-root " + q(out); }
 };
@@ -85,6 +91,8 @@ TEST_CASE("confinement: every escape route of an input or an output is refused, 
       {envJob("in-face-link", "../in/faces", "../out/e.json"), "input", s.in},
       {{{"id", "in-gltf-buffer"}, {"type", "transport"}, {"input", "../in/scene.gltf"},
         {"outputs", {{"npy", "../out/f.npy"}}}}, "input", s.in},
+      {{{"id", "in-glb-buffer"}, {"type", "glossy"}, {"input", "../in/scene.glb"},
+        {"outputs", {{"npy", "../out/h.npy"}}}}, "input", s.in},
       {{{"id", "in-preview-env"}, {"type", "transport"}, {"input", "../in/sky.exr"},
         {"preview_env", s.secret + "/sky.exr"}, {"outputs", {{"npy", "../out/g.npy"}, {"png", "../out/g.png"}}}},
        "preview_env", s.in},
