@@ -434,23 +434,26 @@ class Test:
         calls = traced_calls(trace)
 
         def nth(syscall, wanted):
-            """The 1-based index of the first main-thread `syscall` on a file `wanted` accepts."""
+            """The 1-based index of the first main-thread `syscall` on a file `wanted` accepts (its path)."""
             k = 0
             for name, path, _ in calls:
                 if name == syscall:
                     k += 1
-                    if wanted(os.path.basename(path)):
+                    if wanted(path):
                         return k
             return None
 
-        stage = ".stage.prtbake-tmp."
+        # A job's outputs are written in staging directories (".stage.prtbake-tmp.<pid>.<n>/"),
+        # each through a temp file ".<name>.prtbake-tmp.<pid>.<n>".
+        def staged(p, ext):
+            return "/.stage.prtbake-tmp." in p and os.path.basename(p).startswith(".lut" + ext + ".prtbake-tmp.")
         cases = [
             ("40_edquot_png.json", "write", "EDQUOT", errno.EDQUOT, "a write of the PNG output",
-             lambda n: n.startswith("." + stage) and ".png" in n),
+             lambda p: staged(p, ".png")),
             ("41_eio_exr.json", "fsync", "EIO", errno.EIO, "the fsync of the OpenEXR output",
-             lambda n: n.startswith("." + stage) and ".exr" in n),
+             lambda p: staged(p, ".exr")),
             ("42_eio_manifest.json", "fsync", "EIO", errno.EIO, "the fsync of the new manifest (after the "
-             "outputs' rename)", lambda n: n.startswith(".lut.exr.manifest.json.prtbake-tmp.")),
+             "outputs' rename)", lambda p: os.path.basename(p).startswith(".lut.exr.manifest.json.prtbake-tmp.")),
         ]
         for name, syscall, err, code_errno, what, wanted in cases:
             print("   %s: %s fails with %s" % (name, what, err))
@@ -462,7 +465,7 @@ class Test:
             trace = os.path.join(self.work, name + ".trace")
             code, ends, output = self.run_traced(self.spool, trace, (syscall, err, n))
             hit = [path for sc, path, line in traced_calls(trace) if line.endswith("(INJECTED)")]
-            self.check(len(hit) == 1 and wanted(os.path.basename(hit[0])),
+            self.check(len(hit) == 1 and wanted(hit[0]),
                        "%s: the injected %s hit %s" % (name, err, what), "hit: %s" % hit)
             self.check(code == 1, "%s: the worker exits with 1" % name, "exit %s\n%s" % (code, output[-3000:]))
             self.check_record(name, ["lut"], "failed", os.strerror(code_errno), ends)
