@@ -1,6 +1,6 @@
 // Prefiltered specular chains: schedules, the furnace for every lobe and schedule, the kernel
 // against its double reference, analytic oracles (a linear environment, one bright texel),
-// seams, extremes and the KTX2 layout. Real maps: test_prefilter_data.cpp; the command,
+// seams, extremes, the KTX2 layout and lat-long files read in bands. Real maps: test_prefilter_data.cpp; the command,
 // jobs and read-back: test_prefilter_cli.cpp.
 #include <catch2/catch.hpp>
 
@@ -12,6 +12,7 @@
 #include "core/gauss_legendre.h"
 #include "prefilter/prefilter_detail.h"
 #include "prtbake/error.h"
+#include "prtbake/exr.h"
 #include "prtbake/lut.h"
 #include "prtbake/prefilter.h"
 #include "test_common.h"
@@ -582,4 +583,189 @@ TEST_CASE("KTX2 layout: header, level index, data format descriptor", "[prefilte
     }
     CHECK(u64(80) + u64(88) == k.size());
   }
+}
+
+namespace {
+
+// A sky with stripes a few source texels wide, so that every resampling lookup matters.
+Rgb stripedSky(const double* d) {
+  const Rgb sky = skyWithSun(d);
+  const double s = 1.0 + 0.5 * std::sin(23.0 * d[0]) * std::cos(17.0 * d[2]) + 0.3 * std::sin(31.0 * d[1]);
+  return {sky[0] * s, sky[1] * (2.0 - s), sky[2]};
+}
+
+// Writes `env` (lat-long) as a float OpenEXR file with the lat-long envmap attribute.
+void writeLatLongExr(const std::string& path, const EnvMap& env) {
+  std::vector<float> r(env.texelCount()), g(r.size()), b(r.size());
+  for (size_t t = 0; t < r.size(); ++t) r[t] = env.rgb[3 * t], g[t] = env.rgb[3 * t + 1], b[t] = env.rgb[3 * t + 2];
+  ExrWriteOptions o;
+  o.envmap = 0;
+  writeExr(path, env.width, env.height, {{"R", r.data()}, {"G", g.data()}, {"B", b.data()}}, o);
+}
+
+// The bytes of bands of `rows` float rows of a w-wide map (forEachLatLongBand's bandBytes).
+size_t rowsOf(int w, int rows) { return 12 * size_t(w) * size_t(rows); }
+
+// An r = 0 texel whose resampling lookups straddle two bands adds the same double terms as
+// the whole map's, in another order: the double sums differ in their last bits, which the
+// rounding to float turns into at most one float ulp, 2⁻²³ relative.
+constexpr double kBandOrderTolerance = 0x1p-23;
+// The sampled method reads its base through box filters and trilinear lookups in float, all
+// with positive weights: a base texel one ulp away moves a lookup by a few ulps at most.
+constexpr double kBandSampledTolerance = 1e-6;
+
+// Max relative difference (per channel) and the count of texels that differ at all.
+std::pair<double, size_t> compareTexels(const std::vector<float>& a, const std::vector<float>& b) {
+  REQUIRE(a.size() == b.size());
+  double worst = 0;
+  size_t differ = 0;
+  for (size_t i = 0; i < a.size(); i += 3) {
+    bool d = false;
+    for (size_t c = 0; c < 3; ++c) {
+      worst = std::max(worst, relErr(a[i + c], b[i + c]));
+      d = d || a[i + c] != b[i + c];
+    }
+    differ += d;
+  }
+  return {worst, differ};
+}
+
+}  // namespace
+
+TEST_CASE("Bands: the bin tree and the resampling from bands of rows against the whole map's", "[prefilter][bands]") {
+  EnvMap env = makeLatLong(40, stripedSky);
+  env.yawDegrees = 30.0;
+  const int m0 = detail::binFaceSizeFor(env);
+  const detail::BinTree whole = detail::buildBinTree(env, m0);
+  for (int rows : {1, 7, 40}) {
+    INFO(rows << "-row bands");
+    // The bin tree: the same bits, whatever the bands.
+    detail::BinTreeBands bins(env, m0);
+    for (int y = 0; y < env.height; y += rows) {
+      const size_t first = size_t(y) * size_t(env.width), count = size_t(std::min(rows, env.height - y)) * size_t(env.width);
+      bins.add(&env.rgb[3 * first], first, count);
+    }
+    const detail::BinTree banded = bins.finish();
+    CHECK(banded.offset == whole.offset);
+    CHECK(std::equal(banded.flux.begin(), banded.flux.end(), whole.flux.begin(), whole.flux.end()));
+    CHECK(std::equal(banded.dirL.begin(), banded.dirL.end(), whole.dirL.begin(), whole.dirL.end()));
+    CHECK(std::equal(banded.dirG.begin(), banded.dirG.end(), whole.dirG.begin(), whole.dirG.end()));
+    CHECK(std::equal(banded.geom.begin(), banded.geom.end(), whole.geom.begin(), whole.geom.end()));
+    // The resampling, minifying (16: 2 × 2 lookups per texel) and magnifying (64: one).
+    for (int n : {16, 64}) {
+      INFO("face size " << n);
+      detail::ResampleBands resample(env, n);
+      for (int y = 0; y < env.height; y += rows) {
+        EnvMap band;
+        band.layout = EnvLayout::LatLong;
+        band.width = env.width, band.height = std::min(rows, env.height - y);
+        band.rgb.assign(&env.rgb[3 * size_t(y) * size_t(env.width)],
+                        &env.rgb[3 * size_t(y + band.height) * size_t(env.width)]);
+        resample.add(band, y);
+      }
+      const auto [worst, differ] = compareTexels(resample.finish(), resampleEnvironment(env, n));
+      INFO(differ << " texels differ, by at most " << worst);
+      if (rows == env.height) CHECK(differ == 0);  // one band: every texel's lookups in order
+      CHECK(worst <= kBandOrderTolerance);
+    }
+  }
+}
+
+TEST_CASE("Bands: a lat-long OpenEXR read in bands gives the whole map's chain", "[prefilter][bands]") {
+  const std::string path = test::tempDir("prefilter-bands") + "/sky.exr";
+  writeLatLongExr(path, makeLatLong(40, stripedSky));
+  const double yaw = 30.0;
+  EnvMap whole = loadEnvironment(path);
+  whole.yawDegrees = yaw;
+  PrefilterOptions sampled = opts(PrefilterLobe::Ggx, PrefilterSchedule::Linear, 32, 3);
+  sampled.method = PrefilterMethod::Sampled;
+  sampled.samples = 64;
+  const std::vector<PrefilterOptions> cases = {rough(16, {0.0, 0.3, 1.0}), rough(64, {0.0, 0.1}),
+                                               opts(PrefilterLobe::Charlie, PrefilterSchedule::Filament, 16), sampled};
+  for (int rows : {1, 7}) {
+    for (const PrefilterOptions& o : cases) {
+      INFO(rows << "-row bands, " << toString(o.lobe) << " " << toString(o.method) << " base " << o.baseSize);
+      const PrefilterResult a = prefilterEnvironment(test::runtime(), whole, o);
+      EnvMap description;
+      const PrefilterResult b = prefilterEnvironmentFile(test::runtime, path, {}, yaw, o, &description, rowsOf(whole.width, rows));
+      CHECK(description.rgb.empty());  // never held whole
+      CHECK(description.width == whole.width);
+      CHECK(description.height == whole.height);
+      CHECK(description.layoutName == whole.layoutName);
+      CHECK(description.inputFiles == whole.inputFiles);
+      CHECK(description.clampedTexels == 0);
+      CHECK(description.yawDegrees == yaw);
+      CHECK(b.sourceTexels == a.sourceTexels);
+      CHECK(b.binFaceSize == a.binFaceSize);
+      CHECK(b.alphaFloor == a.alphaFloor);
+      REQUIRE(b.levels.size() == a.levels.size());
+      for (size_t i = 0; i < a.levels.size(); ++i) {
+        INFO("level " << i << ", r = " << a.levels[i].spec.roughness);
+        CHECK(b.levels[i].alphaUsed == a.levels[i].alphaUsed);
+        const auto [worst, differ] = compareTexels(b.levels[i].rgb, a.levels[i].rgb);
+        INFO(differ << " texels differ, by at most " << worst);
+        if (o.method == PrefilterMethod::Sampled)
+          CHECK(worst <= kBandSampledTolerance);
+        else if (a.levels[i].alphaUsed == 0.0)
+          CHECK(worst <= kBandOrderTolerance);
+        else
+          CHECK(differ == 0);  // the same tree: the same cut, the same bits
+      }
+    }
+  }
+}
+
+TEST_CASE("Bands: a map of one band is read whole and gives the same bits", "[prefilter][bands]") {
+  // 64 × 32: one band of 32 rows (a 40-row map would come as 32 + 8: bands are whole chunks).
+  const std::string path = test::tempDir("prefilter-one-band") + "/sky.exr";
+  writeLatLongExr(path, makeLatLong(32, stripedSky));
+  EnvMap whole = loadEnvironment(path);
+  whole.yawDegrees = 30.0;
+  const PrefilterOptions o = opts(PrefilterLobe::Ggx, PrefilterSchedule::Linear, 32);
+  const PrefilterResult a = prefilterEnvironment(test::runtime(), whole, o);
+  EnvMap description;
+  const PrefilterResult b = prefilterEnvironmentFile(test::runtime, path, {}, 30.0, o, &description);
+  CHECK(description.rgb.size() == whole.rgb.size());
+  CHECK(std::equal(description.rgb.begin(), description.rgb.end(), whole.rgb.begin(), whole.rgb.end()));
+  REQUIRE(b.levels.size() == a.levels.size());
+  for (size_t i = 0; i < a.levels.size(); ++i) CHECK(b.levels[i].rgb == a.levels[i].rgb);
+  CHECK(prefilterKtx2Bytes(b, true) == prefilterKtx2Bytes(a, true));
+}
+
+TEST_CASE("Bands: invalid texels in a later band are refused with the file's name before any level", "[prefilter][bands]") {
+  const std::string dir = test::tempDir("prefilter-bands-nan");
+  EnvMap env = makeLatLong(40, stripedSky);
+  const size_t late = size_t(37) * size_t(env.width) + 11;  // in the sixth band of 7 rows
+  env.rgb[3 * late + 1] = std::nanf("");
+  writeLatLongExr(dir + "/nan.exr", env);
+  std::string wholeError, bandError;
+  try {
+    loadEnvironment(dir + "/nan.exr");
+  } catch (const InputError& e) {
+    wholeError = e.what();
+  }
+  bool deviceAsked = false;
+  auto runtime = [&]() -> Runtime& {
+    deviceAsked = true;
+    return test::runtime();
+  };
+  const PrefilterOptions o = rough(16, {0.0, 0.5});
+  EnvMap description;
+  try {
+    prefilterEnvironmentFile(runtime, dir + "/nan.exr", {}, 0.0, o, &description, rowsOf(env.width, 7));
+  } catch (const InputError& e) {
+    bandError = e.what();
+  }
+  CHECK_THAT(wholeError, Catch::Contains("nan.exr") && Catch::Contains("1 invalid value"));
+  CHECK(bandError == wholeError);
+  CHECK_FALSE(deviceAsked);
+  // Clamped, it is the whole map's chain with that texel at 0.
+  EnvLoadOptions clamp;
+  clamp.clampInvalid = true;
+  const EnvMap clamped = loadEnvironment(dir + "/nan.exr", clamp);
+  const PrefilterResult a = prefilterEnvironment(test::runtime(), clamped, o);
+  const PrefilterResult b = prefilterEnvironmentFile(runtime, dir + "/nan.exr", clamp, 0.0, o, &description, rowsOf(env.width, 7));
+  CHECK(description.clampedTexels == 1);
+  CHECK(compareTexels(b.levels[0].rgb, a.levels[0].rgb).first <= kBandOrderTolerance);
+  CHECK(b.levels[1].rgb == a.levels[1].rgb);
 }

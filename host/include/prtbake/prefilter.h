@@ -22,6 +22,8 @@
 // bilinear when magnifying).
 #pragma once
 
+#include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -128,6 +130,23 @@ struct PrefilterResult {
 // Prefilters `env` (any layout; yaw applied) into the schedule's levels on the device.
 // Deterministic: the same inputs and options give the same bits on the same device.
 PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const PrefilterOptions& options);
+
+// prefilterEnvironment of loadEnvironment(path, loadOptions) with yawDegrees, except that a
+// lat-long OpenEXR file of more than one band is read a band of rows (about bandBytes of float
+// texels) at a time (forEachLatLongBand) and never held whole: each band is added to the
+// finest bins' sums (80 bytes per finest bin; the tree they give is buildBinTree's, to the
+// bit) and to the r = 0 resamplings (double sums per output texel while its lookups span
+// bands), then dropped. Every level is then the same bits as the whole map's, except r = 0
+// texels whose lookups straddle two bands: their double sums are added in another order
+// (at most one float ulp apart, 2⁻²³ relative). Invalid texels are refused (or clamped) as
+// loadEnvironment does, counted over the whole file, before any level is computed.
+// *env receives the map's description (layout, size, files, clamped texels, yaw), and its
+// texels only when it was read whole. `runtime` is called once the texels are read and the
+// bin tree is built. The result's totalSeconds counts the bands' reading too.
+PrefilterResult prefilterEnvironmentFile(const std::function<Runtime&()>& runtime, const std::string& path,
+                                         const EnvLoadOptions& loadOptions, double yawDegrees,
+                                         const PrefilterOptions& options, EnvMap* env,
+                                         size_t bandBytes = size_t(32) << 20);
 
 // The r = 0 resampling of `env` onto an n×n cube (what level 0 of a linear chain holds):
 // each texel averages S×S bilinear lookups at its subtexel centres, S = the ratio of the

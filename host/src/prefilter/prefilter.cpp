@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <memory>
 
 #include "core/kernel_options.h"
@@ -391,49 +392,81 @@ void cutLevel(Runtime& rt, CutRunner& runner, const PrefilterOptions& options, P
 
 }  // namespace
 
-PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const PrefilterOptions& options) {
+namespace {
+
+bool isResampled(PrefilterLobe lobe, const PrefilterLevelSpec& s) { return lobe == PrefilterLobe::Ggx && s.alpha == 0.0; }
+
+// Whether a level is filtered by the cut (and so needs the bin tree).
+bool needsTree(const PrefilterOptions& options, const std::vector<PrefilterLevelSpec>& specs) {
+  if (options.method == PrefilterMethod::Sampled) return false;
+  for (const auto& s : specs)
+    if (!isResampled(options.lobe, s)) return true;
+  return false;
+}
+
+// The face sizes the chain resamples the source to: its r = 0 levels, and the sampled
+// method's base.
+std::vector<int> resampledSizes(const PrefilterOptions& options, const std::vector<PrefilterLevelSpec>& specs) {
+  std::vector<int> sizes;
+  if (options.method == PrefilterMethod::Sampled) sizes.push_back(options.baseSize);
+  for (const auto& s : specs)
+    if (isResampled(options.lobe, s)) sizes.push_back(s.size);
+  std::sort(sizes.begin(), sizes.end());
+  sizes.erase(std::unique(sizes.begin(), sizes.end()), sizes.end());
+  return sizes;
+}
+
+// The chain of `env` (its description: layout, size, yaw, source) from the source's two
+// digests: tree() builds the bin tree (called once, only when a level needs it) and
+// resampled(n) the r = 0 resampling of face size n (once per size of resampledSizes).
+// Their times go to binSeconds and resampleSeconds. The device (runtime()) is asked for once
+// the tree is built, so that what building it frees is free before the device starts.
+PrefilterResult prefilterChain(const std::function<Runtime&()>& runtime, const EnvMap& env,
+                               const PrefilterOptions& options,
+                               const std::function<detail::BinTree()>& tree,
+                               const std::function<std::vector<float>(int n)>& resampled) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<PrefilterLevelSpec> specs = prefilterLevels(options);
-  if (env.texelCount() == 0 || env.rgb.size() != 3 * env.texelCount())
-    throw InputError(env.source.empty() ? "environment" : env.source, "empty or inconsistent environment");
   PrefilterResult result;
   result.options = options;
-  result.device = rt.deviceLabel();
   result.sourceTexels = (long long)env.texelCount();
-  const double build0 = rt.buildSeconds();
   const PrefilterLobe lobe = options.lobe;
   const bool sampled = options.method == PrefilterMethod::Sampled;
-  auto isResampled = [&](const PrefilterLevelSpec& s) { return lobe == PrefilterLobe::Ggx && s.alpha == 0.0; };
 
   // Sampled: the chain of the base cube; cut: the bin tree (only when some level needs it).
   std::vector<std::vector<float>> chain;
-  detail::BinTree tree;
-  bool needTree = false;
-  for (const auto& s : specs) needTree = needTree || !isResampled(s);
-  if (sampled) {
+  detail::BinTree bins;
+  const bool needTree = needsTree(options, specs);
+  auto resample = [&](int n) {
     const auto tr = std::chrono::steady_clock::now();
-    chain = detail::boxChain(resampleEnvironment(env, options.baseSize), options.baseSize);
+    std::vector<float> rgb = resampled(n);
     result.resampleSeconds += secondsSince(tr);
+    return rgb;
+  };
+  if (sampled) {
+    chain = detail::boxChain(resample(options.baseSize), options.baseSize);
   } else if (needTree) {
     const auto tb = std::chrono::steady_clock::now();
     result.binFaceSize = detail::binFaceSizeFor(env);
-    tree = detail::buildBinTree(env, result.binFaceSize);
+    bins = tree();
+    PRTBAKE_CHECK(bins.faceSize0 == result.binFaceSize, "the bin tree has the source's finest bin size");
     result.binSeconds = secondsSince(tb);
   }
+  Runtime& rt = runtime();
+  result.device = rt.deviceLabel();
+  const double build0 = rt.buildSeconds();
   // Lobes narrower than half the larger of a source texel and a finest bin would see one
   // bin at a time (a nearest-texel lookup that jumps at bin edges): they are widened to it.
   result.alphaFloor = 0.5 * std::max(detail::sourceTexelAngle(env), result.binFaceSize ? 2.0 / result.binFaceSize : 0.0);
   std::unique_ptr<CutRunner> runner;
-  if (!sampled && needTree) runner = std::make_unique<CutRunner>(rt, tree, lobe, options.vectorWidth);
+  if (needTree) runner = std::make_unique<CutRunner>(rt, bins, lobe, options.vectorWidth);
 
   for (const PrefilterLevelSpec& spec : specs) {
     PrefilterLevel level;
     level.spec = spec;
     const int n = spec.size;
-    if (isResampled(spec)) {
-      const auto tr = std::chrono::steady_clock::now();
-      level.rgb = sampled && n == options.baseSize ? chain[0] : resampleEnvironment(env, n);
-      result.resampleSeconds += secondsSince(tr);
+    if (isResampled(lobe, spec)) {
+      level.rgb = sampled && n == options.baseSize ? chain[0] : resample(n);
       level.alphaUsed = 0;
     } else if (sampled) {
       level.alphaUsed = spec.alpha;
@@ -455,6 +488,91 @@ PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const Prefi
     reportProgress("prefilter", double(result.levels.size()) / double(specs.size()));
   }
   result.buildSeconds = rt.buildSeconds() - build0;
+  result.totalSeconds = secondsSince(t0);
+  return result;
+}
+
+// The chain of a map held whole.
+PrefilterResult prefilterWhole(const std::function<Runtime&()>& runtime, const EnvMap& env,
+                               const PrefilterOptions& options) {
+  prefilterLevels(options);  // validates
+  if (env.texelCount() == 0 || env.rgb.size() != 3 * env.texelCount())
+    throw InputError(env.source.empty() ? "environment" : env.source, "empty or inconsistent environment");
+  return prefilterChain(
+      runtime, env, options, [&] { return detail::buildBinTree(env, detail::binFaceSizeFor(env)); },
+      [&](int n) { return resampleEnvironment(env, n); });
+}
+
+}  // namespace
+
+PrefilterResult prefilterEnvironment(Runtime& rt, const EnvMap& env, const PrefilterOptions& options) {
+  return prefilterWhole([&]() -> Runtime& { return rt; }, env, options);
+}
+
+PrefilterResult prefilterEnvironmentFile(const std::function<Runtime&()>& runtime, const std::string& path,
+                                         const EnvLoadOptions& loadOptions, double yawDegrees,
+                                         const PrefilterOptions& options, EnvMap* env, size_t bandBytes) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<PrefilterLevelSpec> specs = prefilterLevels(options);  // validates before reading
+  const bool needTree = needsTree(options, specs);
+  const std::vector<int> sizes = resampledSizes(options, specs);
+  // A map that comes as one band is kept whole and prefiltered as loadEnvironment's; otherwise
+  // every band goes into the bin sums and the resamplings, and is dropped.
+  EnvMap whole;
+  bool oneBand = false;
+  std::unique_ptr<detail::BinTreeBands> binBands;
+  std::vector<std::unique_ptr<detail::ResampleBands>> resampleBands;
+  double binSeconds = 0, resampleSeconds = 0;
+  auto digest = [&](EnvMap& band, int row) {
+    band.toFloat();
+    if (resampleBands.empty() && !binBands) {
+      EnvMap& description = *env;
+      description.yawDegrees = yawDegrees;
+      if (needTree) binBands = std::make_unique<detail::BinTreeBands>(description, detail::binFaceSizeFor(description));
+      for (int n : sizes) resampleBands.push_back(std::make_unique<detail::ResampleBands>(description, n));
+    }
+    const auto tb = std::chrono::steady_clock::now();
+    if (binBands) binBands->add(band.rgb.data(), size_t(row) * size_t(band.width), band.texelCount());
+    binSeconds += secondsSince(tb);
+    const auto tr = std::chrono::steady_clock::now();
+    for (auto& r : resampleBands) r->add(band, row);
+    resampleSeconds += secondsSince(tr);
+  };
+  const bool streamed = forEachLatLongBand(
+      path, loadOptions, bandBytes,
+      [&](EnvMap& band, int row) {
+        if (row == 0 && band.height == env->height) {
+          whole = std::move(band), oneBand = true;
+          return;
+        }
+        digest(band, row);
+        reportProgress("prefilter", 0.0);  // a cancellation point per band (the levels' fractions follow)
+      },
+      env);
+  if (!streamed || oneBand) {
+    if (!streamed) {
+      *env = loadEnvironment(path, loadOptions);
+    } else {  // one band: the whole map
+      env->rgb = std::move(whole.rgb);
+      env->halfRgb = std::move(whole.halfRgb);
+      env->toFloat();
+    }
+    env->yawDegrees = yawDegrees;
+    return prefilterWhole(runtime, *env, options);
+  }
+  env->yawDegrees = yawDegrees;
+  PrefilterResult result = prefilterChain(
+      runtime, *env, options, [&] { return binBands->finish(); },
+      [&](int n) {
+        const size_t i = size_t(std::find(sizes.begin(), sizes.end(), n) - sizes.begin());
+        PRTBAKE_CHECK(i < sizes.size() && resampleBands[i], "each resampled size is read in bands once");
+        std::vector<float> rgb = resampleBands[i]->finish();
+        resampleBands[i].reset();
+        return rgb;
+      });
+  binBands.reset();
+  result.binSeconds += binSeconds;
+  result.resampleSeconds += resampleSeconds;
   result.totalSeconds = secondsSince(t0);
   return result;
 }

@@ -253,30 +253,45 @@ class TexelStream {
 
 }  // namespace
 
-// The texels are counted into their finest bins by a key face·M0² + Morton(row, col), sorted
-// by that key (counting sort), and summed bin by bin in key order: the four children of every
+// The finest bins' sums are taken bin by bin, each over its texels in index order, and the
+// bins are visited in key order (face·M0² + Morton(row, col)): the four children of every
 // node then come one after the other, so each level's sums are reduced into the next with a
-// stack of one partial sum per level instead of a double array per level.
+// stack of one partial sum per level instead of a double array per level. A whole map finds
+// each bin's texels by a counting sort on the key; a map read in bands (BinTreeBands) adds
+// every texel to its bin's sums as it comes, in index order too, so both give the same bits.
 namespace {
 
-// Sums of one bin: F (3), Ω, m_L (3), m_G (3).
-using BinSums = std::array<double, 10>;
+uint32_t binKey(const double d[3], int m0) {
+  double u, v;
+  int f;
+  cubeFaceUv(d, &f, &u, &v);
+  const uint32_t c = uint32_t(std::clamp(int((u + 1.0) * 0.5 * m0), 0, m0 - 1));
+  const uint32_t r = uint32_t(std::clamp(int((v + 1.0) * 0.5 * m0), 0, m0 - 1));
+  return uint32_t(f) * uint32_t(m0) * uint32_t(m0) + (spread10(r) << 1 | spread10(c));
+}
+
+// Adds one texel (world direction d, solid angle omega, float RGB) to a bin's sums.
+void addTexel(BinSums& a, const double d[3], double omega, const float* rgb) {
+  const double w = (double(rgb[0]) + rgb[1] + rgb[2]) / 3.0 * omega;
+  for (int j = 0; j < 3; ++j) {
+    a[size_t(j)] += double(rgb[j]) * omega;
+    a[size_t(4 + j)] += w * d[j];
+    a[size_t(7 + j)] += omega * d[j];
+  }
+  a[3] += omega;
+}
 
 // The texels in Morton order of their finest bins: bin k's texels are order[start[k] ..
-// start[k + 1]).
+// start[k + 1]), in index order (the sort is stable).
 void mortonOrder(const TexelStream& stream, size_t count, int m0, std::vector<uint32_t>* start,
                  RawVector<uint32_t>* order) {
   const size_t keys = 6 * size_t(m0) * size_t(m0);
   RawVector<uint32_t> key(count);
   start->assign(keys + 1, 0);
   for (size_t i = 0; i < count; ++i) {
-    double d[3], omega, u, v;
-    int f;
+    double d[3], omega;
     stream.texel(i, d, &omega);
-    cubeFaceUv(d, &f, &u, &v);
-    const uint32_t c = uint32_t(std::clamp(int((u + 1.0) * 0.5 * m0), 0, m0 - 1));
-    const uint32_t r = uint32_t(std::clamp(int((v + 1.0) * 0.5 * m0), 0, m0 - 1));
-    key[i] = uint32_t(f) * uint32_t(m0) * uint32_t(m0) + (spread10(r) << 1 | spread10(c));
+    key[i] = binKey(d, m0);
     ++(*start)[key[i] + 1];
   }
   for (size_t k = 0; k < keys; ++k) (*start)[k + 1] += (*start)[k];
@@ -312,9 +327,9 @@ void storeBin(BinTree& t, const std::vector<std::vector<Cell>>& cells, int level
                float(wl), float(a[3]), spreadL, spreadG};
 }
 
-}  // namespace
-
-BinTree buildBinTree(const EnvMap& env, int m0) {
+// The tree from its finest bins' sums: finest(k, a) sets a to the sums of the bin of key k
+// (called once per key, in key order); each node's sums are its children's, added in key order.
+BinTree treeFromFinestSums(int m0, const std::function<void(uint32_t key, BinSums& a)>& finest) {
   PRTBAKE_CHECK(m0 >= 1 && m0 <= 1024 && (m0 & (m0 - 1)) == 0, "bin face size must be a power of two up to 1024");
   BinTree t;
   t.faceSize0 = m0;
@@ -329,12 +344,6 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
   t.dirG.resize(4 * t.nodes());
   t.geom.resize(t.nodes());
 
-  const TexelStream stream(env);
-  const size_t count = env.texelCount(), keys = 6 * size_t(m0) * size_t(m0);
-  RawVector<uint32_t> order(count);
-  std::vector<uint32_t> start;
-  mortonOrder(stream, count, m0, &start, &order);
-
   // Per-level cells (centre and radius in face coordinates), the same on every face.
   std::vector<std::vector<Cell>> cells(static_cast<size_t>(t.levels));
   for (int l = 0; l < t.levels; ++l) {
@@ -345,22 +354,12 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
         cells[size_t(l)][size_t(r) * size_t(m) + size_t(c)] =
             cellOf(2.0 * c / m - 1.0, 2.0 * (c + 1) / m - 1.0, 2.0 * r / m - 1.0, 2.0 * (r + 1) / m - 1.0);
   }
+  const uint32_t keys = 6 * uint32_t(m0) * uint32_t(m0);
   std::vector<BinSums> partial(static_cast<size_t>(t.levels), BinSums{});
   std::vector<int> children(static_cast<size_t>(t.levels), 0);
   for (uint32_t k = 0; k < keys; ++k) {
     BinSums a{};
-    for (uint32_t o = start[k]; o < start[k + 1]; ++o) {
-      double d[3], omega;
-      stream.texel(order[o], d, &omega);
-      const float* rgb = &env.rgb[3 * size_t(order[o])];
-      const double w = (double(rgb[0]) + rgb[1] + rgb[2]) / 3.0 * omega;
-      for (int j = 0; j < 3; ++j) {
-        a[size_t(j)] += double(rgb[j]) * omega;
-        a[size_t(4 + j)] += w * d[j];
-        a[size_t(7 + j)] += omega * d[j];
-      }
-      a[3] += omega;
-    }
+    finest(k, a);
     // Store the bin, then every ancestor whose four children are now done.
     uint32_t code = k;
     for (int l = 0; l < t.levels; ++l) {
@@ -376,6 +375,66 @@ BinTree buildBinTree(const EnvMap& env, int m0) {
     }
   }
   return t;
+}
+
+}  // namespace
+
+BinTree buildBinTree(const EnvMap& env, int m0) {
+  PRTBAKE_CHECK(m0 >= 1 && m0 <= 1024 && (m0 & (m0 - 1)) == 0, "bin face size must be a power of two up to 1024");
+  const TexelStream stream(env);
+  RawVector<uint32_t> order(env.texelCount());
+  std::vector<uint32_t> start;
+  mortonOrder(stream, env.texelCount(), m0, &start, &order);
+  return treeFromFinestSums(m0, [&](uint32_t k, BinSums& a) {
+    for (uint32_t o = start[k]; o < start[k + 1]; ++o) {
+      double d[3], omega;
+      stream.texel(order[o], d, &omega);
+      addTexel(a, d, omega, &env.rgb[3 * size_t(order[o])]);
+    }
+  });
+}
+
+// The map's description (no texels) and its texels' directions and solid angles.
+struct BinTreeBands::Stream {
+  explicit Stream(const EnvMap& description) : map(withoutTexels(description)), texels(map) {}
+  static EnvMap withoutTexels(const EnvMap& description) {
+    EnvMap m;
+    m.layout = description.layout;
+    m.width = description.width, m.height = description.height;
+    m.faces = description.faces;
+    m.yawDegrees = description.yawDegrees;
+    return m;
+  }
+  const EnvMap map;
+  const TexelStream texels;  // reads map
+};
+
+BinTreeBands::BinTreeBands(const EnvMap& description, int faceSize0)
+    : stream_(std::make_unique<Stream>(description)), faceSize0_(faceSize0) {
+  PRTBAKE_CHECK(faceSize0 >= 1 && faceSize0 <= 1024 && (faceSize0 & (faceSize0 - 1)) == 0,
+                "bin face size must be a power of two up to 1024");
+  for (auto& face : sums_) face.assign(size_t(faceSize0) * size_t(faceSize0), BinSums{});
+}
+
+BinTreeBands::~BinTreeBands() = default;
+
+void BinTreeBands::add(const float* rgb, size_t firstTexel, size_t count) {
+  for (size_t i = 0; i < count; ++i) {
+    double d[3], omega;
+    stream_->texels.texel(firstTexel + i, d, &omega);
+    const uint32_t key = binKey(d, faceSize0_), perFace = uint32_t(faceSize0_) * uint32_t(faceSize0_);
+    addTexel(sums_[key / perFace][key % perFace], d, omega, rgb + 3 * i);
+  }
+}
+
+BinTree BinTreeBands::finish() {
+  // Keys are face-major: each face's sums are freed once read, as the tree's pages fill.
+  const uint32_t perFace = uint32_t(faceSize0_) * uint32_t(faceSize0_);
+  return treeFromFinestSums(faceSize0_, [&](uint32_t k, BinSums& a) {
+    std::vector<BinSums>& face = sums_[k / perFace];
+    a = face[k % perFace];
+    if (k % perFace == perFace - 1) std::vector<BinSums>().swap(face);
+  });
 }
 
 // --- the lobe's tables ---

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -43,6 +44,31 @@ struct BinTree {
 
 // faceSize0: a power of two up to 1024.
 BinTree buildBinTree(const EnvMap& env, int faceSize0);
+
+// Sums of one bin in double: F (3), Ω, m_L = Σ w_t Ω_t ω_t (3), m_G = Σ Ω_t ω_t (3).
+using BinSums = std::array<double, 10>;
+
+// The same tree from a map read a band of texels at a time (forEachLatLongBand), to the
+// bit: every texel is added to its finest bin's sums as it comes, in index order, as
+// buildBinTree sums each bin's texels. Holds 80 bytes per finest bin (6·faceSize0²) until
+// finish() has read them.
+class BinTreeBands {
+ public:
+  // description: the map's layout, size, face bases and yaw (its texels are not read).
+  BinTreeBands(const EnvMap& description, int faceSize0);
+  ~BinTreeBands();
+  // Adds `count` texels of float RGB, those of index firstTexel.. of the map (texelDirection's
+  // index). Bands must come in index order.
+  void add(const float* rgb, size_t firstTexel, size_t count);
+  // The tree; frees the sums.
+  BinTree finish();
+
+ private:
+  struct Stream;
+  std::unique_ptr<Stream> stream_;
+  int faceSize0_ = 0;
+  std::array<std::vector<BinSums>, 6> sums_;  // per face, by Morton code
+};
 
 // The finest bin size used for a source: the largest power of two not above the source's
 // face size (cube) or width/4 (lat-long), at most kMaxBinFaceSize.
@@ -119,6 +145,34 @@ void forEachBinEntry(const BinTree& tree, uint32_t entry, const std::function<vo
 // per texel, leaves in order, row-major within a leaf, texels inside the level only). For tests.
 std::vector<double> evaluateCutsReference(const BinTree& tree, const TileCuts& cuts, const TileTree& tiles,
                                           PrefilterLobe lobe, double alpha, int face, const std::vector<int>& leaves);
+
+// resampleEnvironment of a lat-long map read a band of rows at a time (forEachLatLongBand).
+// Each bilinear lookup is taken in the band that holds its rows (the previous band's last row
+// is kept), into double sums per output texel that live from the first band reaching the
+// texel's tile of 8 × 8 to the band covering its last rows. A texel whose lookups all fall in
+// one band gets resampleEnvironment's bits; one whose lookups straddle bands adds them in
+// another order (a difference of at most one float ulp, 2⁻²³ relative).
+class ResampleBands {
+ public:
+  // description: the map's size and yaw (its texels are not read); n: the cube's face size.
+  ResampleBands(const EnvMap& description, int n);
+  ~ResampleBands();
+  // Rows firstRow.. of the map as float RGB (band.rgb); bands must come in order.
+  void add(const EnvMap& band, int firstRow);
+  // The n×n cube (as resampleEnvironment's), once every row has come.
+  std::vector<float> finish();
+
+ private:
+  struct Tile;
+  bool finishTile(size_t id);  // false when the tile missed lookups
+  void tilePosition(size_t id, int* face, int* ty, int* tx) const;  // id = (face·side + ty)·side + tx
+  EnvMap map_;                 // the description
+  int n_ = 0, side_ = 0, nextRow_ = 0;
+  std::vector<int> rowLo_, rowHi_;  // per tile: the rows its lookups may start at
+  std::vector<std::unique_ptr<Tile>> tiles_;
+  std::vector<float> out_, lastRow_;
+  std::atomic<size_t> finished_{0};
+};
 
 // Face (0..5) and u, v ∈ [−1, 1] of a direction in the standard cube (docs/conventions.md "Cube faces").
 void cubeFaceUv(const double d[3], int* face, double* u, double* v);
