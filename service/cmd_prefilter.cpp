@@ -50,11 +50,16 @@ int runPrefilter(const CommandLine& cl) {
   const EnvLoadOptions lo = jobs::envLoadOptionsFrom(p, false);
   const double yaw = p["yaw"].get<double>();
 
-  EnvMap env = loadEnvironment(input, lo);
-  env.yawDegrees = yaw;
-  const double loadSeconds = secondsSince(t0);
-  Runtime& rt = jobs::processRuntime(cl.device());
-  const PrefilterResult r = prefilterEnvironment(rt, env, o);
+  // A lat-long OpenEXR file is read in bands: load then counts everything before the device
+  // starts, the bands' bin sums and resampling (the sidecar's bins and resample) included.
+  EnvMap env;
+  double loadSeconds = 0;
+  const PrefilterResult r = prefilterEnvironmentFile(
+      [&]() -> Runtime& {
+        loadSeconds = secondsSince(t0);
+        return jobs::processRuntime(cl.device());
+      },
+      input, lo, yaw, o, &env);
   nlohmann::json meta;
   meta["parameters"] = {{"input", input},
                         {"lobe", toString(o.lobe)},

@@ -319,9 +319,17 @@ ExecResult runPrefilter(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const PrefilterOptions options = prefilterOptionsFrom(p);
   validatePrefilterOptions(options);
+  // A lat-long OpenEXR file is read in bands (load_seconds then counts what precedes the
+  // device's start, the bands included).
+  const auto t0 = std::chrono::steady_clock::now();
   double loadSeconds = 0;
-  const EnvMap env = loadJobEnvironment(job, false, &loadSeconds);
-  const PrefilterResult r = prefilterEnvironment(ctx.runtime(), env, options);
+  EnvMap env;
+  const PrefilterResult r = prefilterEnvironmentFile(
+      [&]() -> Runtime& {
+        loadSeconds = secondsSince(t0);
+        return ctx.runtime();
+      },
+      job.input, envLoadOptionsFrom(p, false), p["yaw"].get<double>(), options, &env);
   const json meta = {{"job", job.id}, {"parameters", p}, {"timings_seconds", {{"load", loadSeconds}}}};
   writePrefilterFiles(r, env, ctx.wants("json") ? ctx.output("json") : std::string(),
                       ctx.wants("ktx2") ? ctx.output("ktx2") : std::string(), p["float32"].get<bool>(),

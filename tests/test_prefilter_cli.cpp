@@ -128,6 +128,28 @@ TEST_CASE("CLI prefilter: bad input fails with one line and leaves nothing", "[p
   CHECK(json::parse(readFile(dir + "/out.json"))["environment"]["clamped_texels"] == 1);
 }
 
+TEST_CASE("CLI prefilter: a NaN in the last band of a large lat-long file fails with one line and leaves nothing",
+          "[prefilter][cli][bands]") {
+  // 4096 × 2048 float texels (96 MiB) come in 4 bands of 672 rows (forEachLatLongBand's 32 MiB,
+  // whole chunks of 32 lines); the NaN (a grey Y channel, so one per R, G, B) is in the fourth.
+  const std::string dir = test::tempDir("prefilter-bands-cli");
+  const int w = 4096, h = 2048;
+  std::vector<float> y(size_t(w) * h, 0.5f);
+  y[size_t(2040) * w + 17] = std::nanf("");
+  ExrWriteOptions o;
+  o.envmap = 0;
+  writeExr(dir + "/big.exr", w, h, {{"Y", y.data()}}, o);
+  y = {};
+  const auto r = test::runCli("prefilter '" + dir + "/big.exr' -o '" + dir + "/out.ktx2' --exr '" + dir + "/out.exr' --size 16");
+  INFO(r.output);
+  CHECK(r.exitCode == 1);
+  CHECK(r.output.rfind("prtbake: error: ", 0) == 0);
+  CHECK(test::countOf(r.output, "\n") == 1);
+  CHECK(r.output.find("big.exr") != std::string::npos);
+  CHECK(r.output.find("3 invalid values (3 NaN/Inf") != std::string::npos);  // Y: one value per channel
+  CHECK(listDir(dir) == std::vector<std::string>{"big.exr"});
+}
+
 TEST_CASE("CLI prefilter: usage errors exit 2 before anything is read or written", "[prefilter][cli]") {
   const std::string dir = test::tempDir("prefilter-usage");
   writeSky(dir + "/sky.exr");
