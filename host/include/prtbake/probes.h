@@ -1,0 +1,108 @@
+// prtbake/probes.h: light probe grids, SH radiance at points in space (docs/probes.md).
+//
+// A grid of NX × NY × NZ probes fills an axis-aligned box (the bounds) with one cell per
+// probe and each probe at its cell's centre, as three.js's LightProbeGrid places them:
+//   p(i, j, k) = min + ((i + ½) sx, (j + ½) sy, (k + ½) sz),  s = (max − min) / (NX, NY, NZ).
+// Each probe holds the radiance arriving at its position, projected to real SH of order n
+// (docs/conventions.md, "SH basis"), per linear RGB channel:
+//   P_i = ∫_S² L(p, ω) Y_i(ω) dω,
+// L(p, ω) the environment's radiance where the ray from p along ω escapes the scene, the
+// exit radiance of the surface it hits first when that is a front face (with bounces:
+// ρ(q) Σ_j l_j T_j(q), T the per-vertex transport of bounces − 1 interreflections, see
+// transport.h; without: 0), and 0 at a back face. An empty scene gives P = l, the
+// environment's own coefficients.
+//
+// Estimator: a product quadrature (Gauss–Legendre in cos θ × uniform in φ, exact for
+// spherical polynomials of the degree the environment and the probe's order need), turned
+// by a random rotation per probe; a probe that sees no geometry gets l to float precision,
+// a probe that sees only geometry gets none of the environment.
+//
+// Validity: a probe whose rays hit back faces in more than `backfaceLimit` of its rays is
+// inside geometry. It is moved to the nearest free point within `relocateFraction` of its
+// cell (candidates on a lattice, tested with a pilot); where none is free it is marked
+// invalid and filled with the mean of its valid neighbours (repeatedly, so that a block of
+// invalid probes fills from its rim).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
+#include "prtbake/sh.h"
+
+namespace prtbake {
+
+constexpr int kMaxProbesPerAxis = 1024;
+constexpr size_t kMaxProbes = size_t(1) << 24;
+
+struct ProbeGridLayout {
+  std::array<int, 3> resolution{};          // NX, NY, NZ
+  std::array<double, 3> boundsMin{}, boundsMax{};
+  std::array<double, 3> cell() const;       // (max − min) / resolution
+  std::array<double, 3> probePosition(int i, int j, int k) const;
+  size_t count() const { return size_t(resolution[0]) * resolution[1] * resolution[2]; }
+};
+
+struct ProbeOptions {
+  // Either resolution (every entry ≥ 1) or spacing (> 0: NX = max(1, round(size_x / spacing)), …).
+  std::optional<std::array<int, 3>> resolution;
+  double spacing = 0;
+  // The box; unset: the mesh's bounding box.
+  std::optional<std::array<double, 3>> boundsMin, boundsMax;
+  int order = 3;              // 2 (L1, 4 coefficients) or 3 (L2, 9)
+  int samples = 256;          // rays per probe (rounded to the quadrature's rings × segments)
+  uint64_t seed = 0;
+  int bounces = 1;            // 0: surfaces are black; B ≥ 1: lit with B − 1 interreflections
+  int transportSamples = 256; // rays per vertex of the surfaces' transport (bounces ≥ 1)
+  std::optional<std::array<float, 3>> albedoOverride;
+  double backfaceLimit = 0.25;     // fraction of back-face hits that marks a probe inside geometry
+  double relocateFraction = 0.45;  // the farthest move, as a fraction of the smallest cell side (0: never)
+};
+
+struct ProbeGridResult {
+  ProbeGridLayout layout;
+  int order = 0;
+  // count × order² × 3 floats, probe-major with x fastest, then y, then z ([NZ][NY][NX][n²][3]).
+  std::vector<float> coeffs;
+  std::vector<float> positions;         // count × 3: where each probe was baked (moved ones included)
+  std::vector<uint8_t> state;           // count: 0 valid, 1 moved, 2 invalid (filled from neighbours)
+  std::vector<float> backfaceFraction;  // count: at the position it was baked at
+  size_t moved = 0, invalid = 0;
+  int samples = 0, rings = 0, segments = 0;
+  uint64_t rays = 0;
+  int environmentOrder = 0;
+  double bvhSeconds = 0, surfaceSeconds = 0, traceSeconds = 0, relocateSeconds = 0, totalSeconds = 0;
+  std::string device;
+
+  const float* probe(size_t index) const { return coeffs.data() + index * size_t(order) * order * 3; }
+};
+
+// The grid's layout from the options and the mesh's bounds; throws UsageError for empty or
+// inverted bounds, a resolution of 0 or over the limits.
+ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& options);
+
+// Bakes the grid under the environment's radiance coefficients `environment` (any order).
+// Throws UsageError for bad options, InputError when no triangle lies inside the bounds.
+ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& environment,
+                                 const ProbeOptions& options);
+
+// The irradiance over π (the diffuse exit radiance for albedo 1) that the grid gives at
+// point x for normal n: the probes' coefficients trilinearly interpolated (clamped at the
+// outermost probes' centres), convolved with the clamped cosine and evaluated at n.
+std::array<double, 3> probeGridIrradianceOverPi(const ProbeGridResult& grid, const std::array<double, 3>& x,
+                                                const std::array<double, 3>& n);
+
+// --- outputs (atomic; *Bytes twins return the contents) ---
+// NumPy .npy, float32, shape [NZ, NY, NX, n², 3].
+std::string probeGridNpyBytes(const ProbeGridResult& grid);
+// The sidecar JSON: parameters, layout, conventions, validity (every moved and invalid probe),
+// sample counts and timings.
+std::string probeGridSidecarBytes(const std::string& inputPath, const ProbeOptions& options,
+                                  const ShCoeffs& environment, const std::string& environmentPath,
+                                  const ProbeGridResult& grid);
+
+}  // namespace prtbake
