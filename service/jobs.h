@@ -23,6 +23,7 @@
 #include "prtbake/ibl.h"
 #include "prtbake/lut.h"
 #include "prtbake/prefilter.h"
+#include "prtbake/probes.h"
 #include "prtbake/transport.h"
 
 namespace prtbake::jobs {
@@ -96,6 +97,13 @@ json selectEnvOrder(EnvProjectResult& r, EnvProjectOptions& po, const json& tole
 // of a split glossy job, and the merge of those ranges (after cmd_merge.cpp has checked every
 // partial's manifest; returns the problems, empty when merged and written).
 JobType glossyJobType();
+
+// The probe grid job (job_probes.cpp): its type, the library's options from its parameters,
+// and its lighting (the key env: a radiance SH JSON, an environment map projected to env_order,
+// or none: constant white), the files read appended to *files.
+JobType probesJobType();
+ProbeOptions probeOptionsFrom(const json& params);
+ShCoeffs probeEnvironment(const json& params, const std::function<Runtime&()>& runtime, std::vector<std::string>* files);
 const JobType& glossyPartialType();
 std::vector<std::string> mergeGlossySplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
 

@@ -53,6 +53,8 @@ int main() {
   for (PrefilterLobe lobe : {PrefilterLobe::Ggx, PrefilterLobe::Charlie, PrefilterLobe::Lambertian})
     for (int vw : {1, 8, 16}) print("prefilter.cl", detail::prefilterCutOptions(lobe, vw));
   print("prefilter.cl", detail::prefilterSampledOptions());
+  for (int order : {2, 3})
+    for (int env = order; env <= kMaxTransportOrder; ++env) print("probes.cl", detail::probesOptions(order, env));
   print("sh_eval.cl", "");
   return 0;
 }

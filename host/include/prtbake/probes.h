@@ -37,7 +37,7 @@
 namespace prtbake {
 
 constexpr int kMaxProbesPerAxis = 1024;
-constexpr size_t kMaxProbes = size_t(1) << 24;
+constexpr size_t kMaxProbes = size_t(1) << 22;  // 4 M probes: 450 MB of L2 coefficients
 
 struct ProbeGridLayout {
   std::array<int, 3> resolution{};          // NX, NY, NZ
@@ -61,6 +61,10 @@ struct ProbeOptions {
   std::optional<std::array<float, 3>> albedoOverride;
   double backfaceLimit = 0.25;     // fraction of back-face hits that marks a probe inside geometry
   double relocateFraction = 0.45;  // the farthest move, as a fraction of the smallest cell side (0: never)
+  // InputError when the scene's bounding box does not meet the bounds (a mistake in a command or
+  // job: the grid would see only the environment); false lets
+  // a library caller bake an empty scene (the environment at every probe).
+  bool requireGeometry = true;
 };
 
 struct ProbeGridResult {
@@ -72,6 +76,7 @@ struct ProbeGridResult {
   std::vector<uint8_t> state;           // count: 0 valid, 1 moved, 2 invalid (filled from neighbours)
   std::vector<float> backfaceFraction;  // count: at the position it was baked at
   size_t moved = 0, invalid = 0;
+  int fillPasses = 0;                   // passes of the neighbours' fill
   int samples = 0, rings = 0, segments = 0;
   uint64_t rays = 0;
   int environmentOrder = 0;
@@ -86,7 +91,7 @@ struct ProbeGridResult {
 ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& options);
 
 // Bakes the grid under the environment's radiance coefficients `environment` (any order).
-// Throws UsageError for bad options, InputError when no triangle lies inside the bounds.
+// Throws UsageError for bad options, InputError when the scene lies outside the bounds.
 ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& environment,
                                  const ProbeOptions& options);
 

@@ -1,0 +1,75 @@
+// The probe grid's raw outputs: the .npy of coefficients and the sidecar JSON (see probes.h).
+#include <nlohmann/json.hpp>
+
+#include "io/npy.h"
+#include "prtbake/probes.h"
+#include "prtbake/atomic_file.h"
+
+namespace prtbake {
+
+std::string probeGridNpyBytes(const ProbeGridResult& g) {
+  npy::checkLittleEndian();
+  const auto& r = g.layout.resolution;
+  std::string out = npy::header("<f4", {size_t(r[2]), size_t(r[1]), size_t(r[0]), size_t(g.order) * g.order, 3});
+  out.append(reinterpret_cast<const char*>(g.coeffs.data()), g.coeffs.size() * sizeof(float));
+  return out;
+}
+
+std::string probeGridSidecarBytes(const std::string& inputPath, const ProbeOptions& o, const ShCoeffs& env,
+                                  const std::string& envPath, const ProbeGridResult& g) {
+  using nlohmann::json;
+  const auto& L = g.layout;
+  json j;
+  j["tool"] = {{"name", "prtbake"}, {"version", version()}};
+  j["product"] = "probes";
+  j["parameters"] = {{"order", o.order}, {"samples", o.samples}, {"seed", o.seed}, {"bounces", o.bounces},
+                     {"transport_samples", o.transportSamples}, {"backface_limit", o.backfaceLimit},
+                     {"relocate", o.relocateFraction}};
+  if (o.albedoOverride) j["parameters"]["albedo"] = {(*o.albedoOverride)[0], (*o.albedoOverride)[1], (*o.albedoOverride)[2]};
+  j["input"] = {{"path", inputPath}};
+  j["environment"] = {{"path", envPath.empty() ? "constant white (L = 1)" : envPath},
+                      {"order", env.order},
+                      {"order_used", g.environmentOrder}};
+  j["grid"] = {{"resolution", {L.resolution[0], L.resolution[1], L.resolution[2]}},
+               {"bounds_min", {L.boundsMin[0], L.boundsMin[1], L.boundsMin[2]}},
+               {"bounds_max", {L.boundsMax[0], L.boundsMax[1], L.boundsMax[2]}},
+               {"cell", {L.cell()[0], L.cell()[1], L.cell()[2]}},
+               {"probes", L.count()},
+               {"placement", "probe (i, j, k) at bounds_min + (i + 1/2, j + 1/2, k + 1/2) * cell, as three.js's "
+                             "LightProbeGrid places them"}};
+  j["conventions"] = {
+      {"basis", "real orthonormal SH with the Condon-Shortley phase"},
+      {"index", "i = l(l+1)+m"},
+      {"quantity", "radiance arriving at the probe, P_i = integral of L(p, w) Y_i(w) dw, linear RGB"},
+      {"layout", "[NZ, NY, NX, n^2, 3] float32, x fastest"},
+      {"shade", "irradiance/pi at normal n: sum_i A_l/pi P_i Y_i(n), A_l = pi, 2pi/3, pi/4"}};
+  json moved = json::array(), invalid = json::array();
+  for (size_t i = 0; i < g.state.size(); ++i) {
+    if (g.state[i] == 0) continue;
+    const int x = int(i % L.resolution[0]), y = int(i / L.resolution[0] % L.resolution[1]),
+              z = int(i / (size_t(L.resolution[0]) * L.resolution[1]));
+    json e = {{"index", {x, y, z}}, {"backface_fraction", g.backfaceFraction[i]}};
+    if (g.state[i] == 1) {
+      e["position"] = {g.positions[3 * i], g.positions[3 * i + 1], g.positions[3 * i + 2]};
+      moved.push_back(e);
+    } else {
+      invalid.push_back(e);
+    }
+  }
+  j["validity"] = {{"backface_limit", o.backfaceLimit},
+                   {"moved", g.moved},
+                   {"invalid", g.invalid},
+                   {"fill_passes", g.fillPasses},
+                   {"moved_probes", moved},
+                   {"invalid_probes", invalid},
+                   {"meaning", "moved: baked at 'position' instead of its grid point; invalid: no free point within "
+                               "reach, filled with the mean of its valid face neighbours"}};
+  j["samples"] = {{"per_probe", g.samples}, {"rings", g.rings}, {"segments", g.segments}, {"rays", g.rays},
+                  {"quadrature", "Gauss-Legendre in cos(theta) x uniform phi, a random rotation per probe"}};
+  j["timings_seconds"] = {{"bvh", g.bvhSeconds}, {"surfaces", g.surfaceSeconds}, {"trace", g.traceSeconds},
+                          {"relocation", g.relocateSeconds}, {"total", g.totalSeconds}};
+  j["device"] = g.device;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace prtbake

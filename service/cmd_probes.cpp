@@ -1,0 +1,71 @@
+// prtbake probes: a light probe grid of a scene (see prtbake/probes.h, docs/probes.md).
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <future>
+#include <memory>
+
+#include "cli.h"
+#include "jobs.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/mesh.h"
+#include "prtbake/probes.h"
+
+namespace prtbake::cli {
+namespace {
+
+int runProbes(const CommandLine& cl) {
+  const std::string input = cl.positional.at(0);
+  const std::string dir = cl.get("output");
+  if (dir.empty()) throw UsageError("probes", "missing -o DIR");
+  const std::string target = cl.getChoice("target", "raw", {"raw", "threejs"});
+  nlohmann::json outputs = {{"npy", dir + "/probes.npy"}, {"json", dir + "/probes.json"}};
+  const nlohmann::json p = productParams(cl, "probes", outputs);
+  const ProbeOptions o = jobs::probeOptionsFrom(p);
+
+  auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
+  const Mesh mesh = loadMesh(input);
+  const ShCoeffs env = jobs::probeEnvironment(p, [&]() -> Runtime& { return *device.get(); }, nullptr);
+  Runtime& rt = jobs::processRuntime(cl.device());
+  const ProbeGridLayout layout = probeGridLayout(mesh, o);
+  status(cl, "probes: " + input + ": " + std::to_string(mesh.triangleCount()) + " triangles, " +
+                 std::to_string(layout.resolution[0]) + "x" + std::to_string(layout.resolution[1]) + "x" +
+                 std::to_string(layout.resolution[2]) + " probes, order " + std::to_string(o.order) + ", " +
+                 std::to_string(o.samples) + " rays per probe, " + std::to_string(o.bounces) + " bounces");
+  const ProbeGridResult g = computeProbeGrid(rt, mesh, env, o);
+
+  // Every output's bytes first; then the directory and the writes, committed together.
+  std::vector<std::pair<std::string, std::string>> files;
+  files.emplace_back(dir + "/probes.npy", probeGridNpyBytes(g));
+  files.emplace_back(dir + "/probes.json",
+                     probeGridSidecarBytes(input, o, env, p["env"].is_null() ? "" : p["env"].get<std::string>(), g));
+  if (target == "threejs") throw UsageError("--target", "threejs is not available in this build yet");
+  if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
+    throw OutputError(dir, std::string("cannot create the directory: ") + std::strerror(errno));
+  std::vector<std::unique_ptr<AtomicFile>> staged;
+  for (const auto& [path, bytes] : files) {
+    staged.push_back(std::make_unique<AtomicFile>(path));
+    staged.back()->write(bytes);
+  }
+  for (auto& f : staged) f->commit();
+  char line[256];
+  std::snprintf(line, sizeof line, "probes: %.3f s (trace %.3f s, surfaces %.3f s), %.3g rays; %zu moved, %zu invalid",
+                g.totalSeconds, g.traceSeconds, g.surfaceSeconds, double(g.rays), g.moved, g.invalid);
+  status(cl, line);
+  return 0;
+}
+
+PRTBAKE_COMMAND(Command{
+    "probes", "a light probe grid: SH radiance at points in space, for moving objects",
+    "prtbake probes SCENE -o DIR [--env SH.json|ENVMAP] [--resolution NX,NY,NZ | --spacing D]\n"
+    "       [--bounds X0,Y0,Z0,X1,Y1,Z1] [--order 2|3] [--samples N] [--bounces B] [--target raw|threejs]\n"
+    "Writes DIR/probes.npy (float32 [NZ, NY, NX, n^2, 3]) and DIR/probes.json (layout, validity, timings).",
+    productOptions("probes", {{"output", true, "the output directory (-o)"},
+                              {"target", true, "raw (.npy and sidecar, default) | threejs (also the 3D atlas)"}}),
+    1, 1, runProbes});
+
+}  // namespace
+}  // namespace prtbake::cli
