@@ -196,7 +196,8 @@ TEST_CASE("A refused value is refused alike by the prtbake command and by prtbak
 TEST_CASE("Every command lists every key of its product as an option", "[options]") {
   const std::map<std::string, std::string> command = {{"env", "env"},     {"transport", "transport"},
                                                       {"glossy", "transport"}, {"lut", "lut"},
-                                                      {"prefilter", "prefilter"}, {"ibl", "ibl"}};
+                                                      {"prefilter", "prefilter"}, {"ibl", "ibl"},
+                                                      {"probes", "probes"}};
   for (const auto& t : jobs::jobTypes()) {
     const CliResult help = runCli(command.at(t.name) + " --help");
     REQUIRE(help.exitCode == 0);

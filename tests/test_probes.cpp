@@ -3,7 +3,11 @@
 // bounces' convergence.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
 
 #include "prtbake/error.h"
 #include "prtbake/probes.h"
@@ -277,4 +281,51 @@ TEST_CASE("Probes: bad grids are refused with one line", "[probes]") {
   o.boundsMin = std::array<double, 3>{5, 5, 5};
   o.boundsMax = std::array<double, 3>{6, 6, 6};
   CHECK_THROWS_AS(computeProbeGrid(test::runtime(), room, white(), o), InputError);
+}
+
+TEST_CASE("prtbake probes: bad grids get one line and no output; the job writes the command's bytes", "[probes][cli]") {
+  const std::string dir = test::tempDir("probes-cli");
+  const std::string scene = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf";
+  struct Bad {
+    std::string args, message;
+    int exitCode;
+  };
+  const Bad bad[] = {
+      {"--bounds 0,0,0,1,-1,1", "--bounds: empty or inverted along y", 2},
+      {"--bounds 0,0,0,1,1", "--bounds: expected 6 numbers", 2},
+      {"--resolution 0,4,4", "--resolution: 0 is out of range", 2},
+      {"--resolution 2000,4,4", "--resolution: 2000 is out of range", 2},
+      {"--resolution 1024,1024,8", "probes is over the limit", 2},
+      {"--resolution 4,4", "--resolution: expected 3 integers", 2},
+      {"--bounds 50,50,50,60,60,60", "no geometry inside the probes' bounds", 1},
+      {"--order 4", "--order: 4 is out of range", 2},
+      {"--samples 0", "--samples: 0 is out of range", 2},
+      {"--env " + dir + "/missing.json", "missing.json", 1},
+  };
+  for (const Bad& b : bad) {
+    const test::CliResult r = test::runCli("probes '" + scene + "' -o '" + dir + "/out' " + b.args);
+    INFO(b.args << ": exit " << r.exitCode << ": " << r.output);
+    CHECK(r.exitCode == b.exitCode);
+    CHECK(r.output.find(b.message) != std::string::npos);
+    CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
+    CHECK_FALSE(test::fileExists(dir + "/out"));
+  }
+  // The command and a job of the same parameters write the same coefficients.
+  const std::string args = " --resolution 4,2,4 --samples 64 --bounces 1 --transport-samples 64";
+  const test::CliResult cli = test::runCli("probes '" + scene + "' -o '" + dir + "/cli'" + args + " --quiet");
+  REQUIRE(cli.exitCode == 0);
+  std::ofstream(dir + "/job.json") << nlohmann::json{
+      {"jobs", {{{"id", "grid"}, {"type", "probes"}, {"input", scene}, {"resolution", {4, 2, 4}}, {"samples", 64},
+                 {"transport_samples", 64}, {"outputs", {{"npy", "job/probes.npy"}, {"json", "job/probes.json"}}}}}}}
+                                          .dump();
+  const test::CliResult run = test::runCli("run '" + dir + "/job.json' --quiet");
+  INFO(run.output);
+  REQUIRE(run.exitCode == 0);
+  auto bytes = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string a = bytes(dir + "/cli/probes.npy"), b = bytes(dir + "/job/probes.npy");
+  CHECK(a.size() == 128 + 32 * 9 * 3 * 4);
+  CHECK(a == b);
 }

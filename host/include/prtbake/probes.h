@@ -87,7 +87,8 @@ struct ProbeGridResult {
 };
 
 // The grid's layout from the options and the mesh's bounds; throws UsageError for empty or
-// inverted bounds, a resolution of 0 or over the limits.
+// inverted bounds, a resolution of 0 or over the limits, InputError for a scene outside the
+// bounds (unless options.requireGeometry is false).
 ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& options);
 
 // Bakes the grid under the environment's radiance coefficients `environment` (any order).

@@ -312,6 +312,9 @@ ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& o) {
   if (g.count() > kMaxProbes)
     throw UsageError(o.resolution ? "--resolution" : "--spacing",
                      std::to_string(g.count()) + " probes is over the limit of " + std::to_string(kMaxProbes));
+  if (o.requireGeometry && !sceneMeetsBounds(mesh, g))
+    throw InputError(mesh.sourcePath.empty() ? "scene" : mesh.sourcePath,
+                     "no geometry inside the probes' bounds (the scene's bounding box does not meet them)");
   return g;
 }
 
@@ -324,9 +327,6 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
   g.layout = probeGridLayout(mesh, o);
   g.order = o.order;
   g.device = rt.deviceLabel();
-  if (o.requireGeometry && !sceneMeetsBounds(mesh, g.layout))
-    throw InputError(mesh.sourcePath.empty() ? "scene" : mesh.sourcePath,
-                     "no geometry inside the probes' bounds (the scene's bounding box does not meet them)");
   const int envOrder = std::max(o.order, std::min(environment.order, kMaxEnvOrder));
   g.environmentOrder = std::min(environment.order, kMaxEnvOrder);
 
