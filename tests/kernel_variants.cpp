@@ -54,7 +54,8 @@ int main() {
     for (int vw : {1, 8, 16}) print("prefilter.cl", detail::prefilterCutOptions(lobe, vw));
   print("prefilter.cl", detail::prefilterSampledOptions());
   for (int order : {2, 3})
-    for (int env = order; env <= kMaxTransportOrder; ++env) print("probes.cl", detail::probesOptions(order, env));
+    for (int env = order; env <= kMaxTransportOrder; ++env)
+      for (int packet : {0, 16}) print("probes.cl", detail::probesOptions(order, env, packet));
   print("sh_eval.cl", "");
   return 0;
 }

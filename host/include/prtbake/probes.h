@@ -65,6 +65,9 @@ struct ProbeOptions {
   // job: the grid would see only the environment); false lets
   // a library caller bake an empty scene (the environment at every probe).
   bool requireGeometry = true;
+  // Rays per packet: 16 (a probe's rays 16 at a time over the wide BVH) or 0 (one at a time;
+  // the results agree up to float summation order).
+  int packetWidth = 16;
 };
 
 struct ProbeGridResult {

@@ -32,7 +32,7 @@ std::string glossyPreviewOptions(int orderOut, int lightOrder, bool shBackground
 // prefilter_sampled: one texel per work-item.
 std::string prefilterCutOptions(PrefilterLobe lobe, int vectorWidth);
 std::string prefilterSampledOptions();
-// probes.cl: the probes' SH order and the environment's.
-std::string probesOptions(int order, int envOrder);
+// probes.cl: the probes' SH order, the environment's, and the packet width (0 or 16).
+std::string probesOptions(int order, int envOrder, int packetWidth);
 
 }  // namespace prtbake::detail

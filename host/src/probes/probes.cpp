@@ -86,10 +86,10 @@ void checkOptions(const ProbeOptions& o) {
 class ProbeTracer {
  public:
   ProbeTracer(Runtime& rt, const Mesh& mesh, const Bvh& bvh, const ShCoeffs& env, int order, int envOrder,
-              const std::vector<float>& radiance)
-      : rt_(rt), order_(order) {
-    nodes_ = detail::uploadBvhNodes(rt, bvh, false);
-    tris_ = detail::uploadBvhTriangles(rt, bvh, false);
+              const std::vector<float>& radiance, int packetWidth)
+      : rt_(rt), order_(order), packet_(packetWidth) {
+    nodes_ = detail::uploadBvhNodes(rt, bvh, packet_ > 0);
+    tris_ = detail::uploadBvhTriangles(rt, bvh, packet_ > 0);
     std::vector<float> envRgb(size_t(envOrder) * envOrder * 4, 0.0f);
     for (int j = 0; j < std::min(env.order, envOrder) * std::min(env.order, envOrder); ++j)
       for (int c = 0; c < 3; ++c) envRgb[4 * j + c] = float(env.rgb[j][c]);
@@ -113,22 +113,30 @@ class ProbeTracer {
     faceNormals_ = rt.upload(normals);
     lit_ = !radiance.empty();
     radiance_ = rt.upload(lit_ ? radiance : std::vector<float>(4, 0.0f));
-    kernel_ = rt.kernel("probes.cl", "probes_trace", detail::probesOptions(order, envOrder));
+    kernel_ = rt.kernel("probes.cl", packet_ ? "probes_trace_packet" : "probes_trace",
+                        detail::probesOptions(order, envOrder, packet_));
     // Rays start at the probe and reach past the scene from anywhere in the grid.
     tMax_ = 1e30f;
   }
 
   // Traces probes at `positions` (3 floats each) with frames of `frameIndex[i]` and the
   // quadrature `dirs`; writes order² × 3 coefficients per probe and the back faces' weight.
+  // The packet kernel stops a probe whose back faces weigh more than backStop (its
+  // coefficients are then partial: the caller does not use them).
   void trace(const std::vector<float>& positions, const std::vector<size_t>& frameIndex, uint64_t seed,
-             const std::vector<float>& dirs, std::vector<float>& coeffs, std::vector<float>& backface,
+             const std::vector<float>& dirs, float backStop, std::vector<float>& coeffs, std::vector<float>& backface,
              const char* stage, uint64_t& rays) {
     const size_t n = positions.size() / 3, nc = size_t(order_) * order_ * 3;
     const int samples = int(dirs.size() / 4);
     coeffs.assign(n * nc, 0.0f);
     backface.assign(n, 0.0f);
     if (n == 0) return;
-    cl::Buffer dirBuf = rt_.upload(dirs);
+    // The packet kernel reads the directions as rows x, y, z, weight of paddedCount floats.
+    const int padded = (samples + 15) / 16 * 16;
+    std::vector<float> soa(size_t(4) * padded, 0.0f);
+    for (int i = 0; i < samples; ++i)
+      for (int c = 0; c < 4; ++c) soa[size_t(c) * padded + i] = dirs[4 * size_t(i) + c];
+    cl::Buffer dirBuf = rt_.upload(packet_ ? soa : dirs);
     const size_t block = std::max<size_t>(kLocalSize, kRaysPerLaunch / size_t(samples) / kLocalSize * kLocalSize);
     for (size_t first = 0; first < n; first += block) {
       const size_t count = std::min(block, n - first);
@@ -149,6 +157,10 @@ class ProbeTracer {
       kernel_.setArg(a++, int(lit_));
       kernel_.setArg(a++, outC);
       kernel_.setArg(a++, outB);
+      if (packet_) {
+        kernel_.setArg(a++, padded);
+        kernel_.setArg(a++, backStop);
+      }
       const size_t global = (count + kLocalSize - 1) / kLocalSize * kLocalSize;
       rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global), cl::NDRange(kLocalSize));
       rt_.queue().enqueueReadBuffer(outC, CL_FALSE, 0, count * nc * sizeof(float), coeffs.data() + first * nc);
@@ -160,7 +172,7 @@ class ProbeTracer {
 
  private:
   Runtime& rt_;
-  int order_;
+  int order_, packet_;
   bool lit_ = false;
   float tMax_ = 0;
   cl::Buffer nodes_, tris_, env_, indices_, faceNormals_, radiance_;
@@ -260,8 +272,9 @@ int fillInvalid(ProbeGridResult& g) {
 
 }  // namespace
 
-std::string detail::probesOptions(int order, int envOrder) {
-  return "-DPROBE_ORDER=" + std::to_string(order) + " -DENV_ORDER=" + std::to_string(envOrder);
+std::string detail::probesOptions(int order, int envOrder, int packetWidth) {
+  return "-DPROBE_ORDER=" + std::to_string(order) + " -DENV_ORDER=" + std::to_string(envOrder) +
+         " -DBVH_PACKET=" + std::to_string(packetWidth);
 }
 
 std::array<double, 3> ProbeGridLayout::cell() const {
@@ -346,7 +359,9 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
   g.samples = g.rings * g.segments;
   const std::vector<float> dirs = quadrature(g.rings, g.segments);
 
-  ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance);
+  ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, o.packetWidth);
+  // A probe inside geometry (back faces over the limit) is relocated or filled: its trace may stop.
+  const float stop = float(o.backfaceLimit * 4 * kPi);
   const size_t n = g.layout.count();
   g.positions.resize(n * 3);
   std::vector<size_t> frameIndex(n);
@@ -358,7 +373,7 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
         frameIndex[i] = size_t(i);
       }
   t = Clock::now();
-  tracer.trace(g.positions, frameIndex, o.seed, dirs, g.coeffs, g.backfaceFraction, "probes", g.rays);
+  tracer.trace(g.positions, frameIndex, o.seed, dirs, stop, g.coeffs, g.backfaceFraction, "probes", g.rays);
   for (float& b : g.backfaceFraction) b = float(b / (4 * kPi));
   g.traceSeconds = secondsSince(t);
 
@@ -387,7 +402,7 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
         candidateOf.push_back(i);
       }
     std::vector<float> pilotCoeffs, pilotBack;
-    tracer.trace(candidates, candidateFrame, o.seed, quadrature(kPilotRings, kPilotSegments), pilotCoeffs, pilotBack,
+    tracer.trace(candidates, candidateFrame, o.seed, quadrature(kPilotRings, kPilotSegments), stop, pilotCoeffs, pilotBack,
                  "probes: relocation", g.rays);
     // The first free candidate of each probe (candidates are nearest first).
     std::vector<float> moved;
@@ -400,7 +415,7 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
       movedIndex.push_back(i);
     }
     std::vector<float> movedCoeffs, movedBack;
-    tracer.trace(moved, movedIndex, o.seed, dirs, movedCoeffs, movedBack, "probes: relocated", g.rays);
+    tracer.trace(moved, movedIndex, o.seed, dirs, stop, movedCoeffs, movedBack, "probes: relocated", g.rays);
     const size_t nc = size_t(o.order) * o.order * 3;
     for (size_t m = 0; m < movedIndex.size(); ++m) {
       const size_t i = movedIndex[m];
