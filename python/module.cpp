@@ -30,6 +30,7 @@
 #include "prtbake/progress.h"
 #include "prtbake/runtime.h"
 #include "prtbake/sh_rotate.h"
+#include "prtbake/probes.h"
 #include "prtbake/transport.h"
 #include "confine.h"
 #include "runner.h"
@@ -372,6 +373,49 @@ py::object transportProduct(const py::object& meshObj, const py::kwargs& kw) {
   f["seconds"] = r.totalSeconds;
   f["device"] = r.device;
   return result("TransportResult", f);
+}
+
+py::object probesProduct(const py::object& meshObj, const py::kwargs& kw) {
+  // env: the key's path (an SH JSON or a map), or radiance coefficients as an (n², 3) array.
+  const bool envArray = kw.contains("env") && !kw["env"].is_none() && !py::isinstance<py::str>(kw["env"]) &&
+                        !py::hasattr(kw["env"], "__fspath__");
+  std::vector<std::string> own = {"device", "progress"};
+  if (envArray) own.push_back("env");
+  const json p = paramsOf("probes", kw, {{"npy", "-"}}, own);
+  const ProbeOptions o = jobs::probeOptionsFrom(p);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::string spec = deviceOf(kw);
+  ShCoeffs env;
+  if (envArray) {
+    const py::object e = kw["env"];
+    env = shFromArray(py::hasattr(e, "coeffs") ? py::object(e.attr("coeffs")) : e);
+  }
+  ProbeGridResult r;
+  ProgressScope scope(pythonHook(progressOf(kw)));
+  {
+    py::gil_scoped_release nogil;
+    Device d = device(spec);
+    if (!envArray) env = jobs::probeEnvironment(p, [&]() -> Runtime& { return d.rt; }, nullptr);
+    r = computeProbeGrid(d.rt, *mesh, env, o);
+  }
+  const auto& res = r.layout.resolution;
+  const py::ssize_t nz = res[2], ny = res[1], nx = res[0], nc = py::ssize_t(r.order) * r.order;
+  py::dict f;
+  f["coeffs"] = adopt(std::move(r.coeffs), {nz, ny, nx, nc, 3});
+  f["positions"] = adopt(std::move(r.positions), {nz, ny, nx, 3});
+  f["state"] = adopt(std::move(r.state), {nz, ny, nx});
+  f["backface_fraction"] = adopt(std::move(r.backfaceFraction), {nz, ny, nx});
+  f["resolution"] = py::make_tuple(nx, ny, nz);
+  f["bounds_min"] = py::make_tuple(r.layout.boundsMin[0], r.layout.boundsMin[1], r.layout.boundsMin[2]);
+  f["bounds_max"] = py::make_tuple(r.layout.boundsMax[0], r.layout.boundsMax[1], r.layout.boundsMax[2]);
+  f["order"] = r.order;
+  f["moved"] = r.moved;
+  f["invalid"] = r.invalid;
+  f["samples"] = r.samples;
+  f["rays"] = r.rays;
+  f["seconds"] = r.totalSeconds;
+  f["device"] = r.device;
+  return result("ProbeGridResult", f);
 }
 
 py::object glossyProduct(const py::object& meshObj, const py::kwargs& kw) {
@@ -793,6 +837,7 @@ PYBIND11_MODULE(_prtbake, m) {
         py::arg("quat") = py::none(), py::arg("method") = "exact");
   m.def("transport", &transportProduct, py::arg("mesh"));
   m.def("glossy", &glossyProduct, py::arg("mesh"));
+  m.def("probes", &probesProduct, py::arg("scene"));
   m.def("lut", &lutProduct);
   m.def("prefilter", &prefilterProduct, py::arg("source"));
   m.def("ibl", &iblProduct, py::arg("source"), py::arg("out_dir"));
@@ -822,7 +867,7 @@ PYBIND11_MODULE(_prtbake, m) {
       return "";
     };
     py::dict out;
-    for (const char* name : {"env", "transport", "glossy", "lut", "prefilter", "ibl"}) {
+    for (const char* name : {"env", "transport", "glossy", "lut", "prefilter", "ibl", "probes"}) {
       const jobs::JobType* t = jobs::findJobType(name);
       py::list keys;
       for (const auto& k : t->keys)

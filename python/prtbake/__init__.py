@@ -21,7 +21,7 @@ the command line's: the subject (file or option) and what is wrong with it.
 from __future__ import annotations
 
 import inspect as _inspect
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as _np
 
@@ -29,10 +29,11 @@ from . import _prtbake
 from ._prtbake import (DeviceError, Error, InputError, Mesh, OutputError, __version__, devices, preview_env,
                        preview_lut, preview_mesh, preview_prefilter, read_exr, rotate, run)
 
-__all__ = ["env", "rotate", "transport", "glossy", "lut", "prefilter", "ibl", "run", "devices", "read_exr",
+__all__ = ["env", "rotate", "transport", "glossy", "lut", "prefilter", "ibl", "probes", "run", "devices", "read_exr",
            "preview_env", "preview_mesh", "preview_lut", "preview_prefilter",
            "keywords", "Mesh", "Error", "InputError", "DeviceError", "OutputError", "EnvResult",
-           "TransportResult", "GlossyResult", "LutResult", "PrefilterResult", "IblResult", "RunResult"]
+           "TransportResult", "GlossyResult", "LutResult", "PrefilterResult", "IblResult", "ProbeGridResult",
+           "RunResult"]
 
 
 class _Result:
@@ -123,6 +124,24 @@ class PrefilterResult(_Result):
     device: str
 
 
+class ProbeGridResult(_Result):
+    """A light probe grid (docs/probes.md): radiance SH at each probe, probes at cell centres."""
+    coeffs: _np.ndarray            # (NZ, NY, NX, n², 3) float32, linear RGB radiance coefficients
+    positions: _np.ndarray         # (NZ, NY, NX, 3) float32, where each probe was baked
+    state: _np.ndarray             # (NZ, NY, NX) uint8: 0 valid, 1 moved, 2 invalid (filled)
+    backface_fraction: _np.ndarray # (NZ, NY, NX) float32
+    resolution: Tuple[int, int, int]
+    bounds_min: Tuple[float, float, float]
+    bounds_max: Tuple[float, float, float]
+    order: int
+    moved: int
+    invalid: int
+    samples: int
+    rays: int
+    seconds: float
+    device: str
+
+
 class IblResult(_Result):
     """An engine lighting package written to a directory."""
     files: List[str]
@@ -160,6 +179,9 @@ _SUMMARY = {
     "lut": (None, "Split-sum BRDF lookup tables. Returns LutResult."),
     "prefilter": ("source", "Prefiltered specular cube chain of an environment (a file or an array, as env).\n\n"
                   "Returns PrefilterResult."),
+    "probes": ("scene", "A light probe grid: radiance SH at points in space, for moving objects.\n\n"
+               "scene: a prtbake.Mesh or a mesh file. env: an SH JSON or environment map path, or radiance\n"
+               "coefficients as an (n², 3) array (an EnvResult's coeffs). Returns ProbeGridResult."),
     "ibl": ("source", "Engine lighting packages (three.js, Filament, Babylon.js, glTF) written to out_dir,\n"
             "which appears whole or not at all. Returns IblResult."),
 }
@@ -199,3 +221,4 @@ glossy = _product("glossy")
 lut = _product("lut")
 prefilter = _product("prefilter")
 ibl = _product("ibl")
+probes = _product("probes")

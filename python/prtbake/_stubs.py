@@ -59,7 +59,7 @@ def stubs() -> str:
         "",
     ]
     for cls in (prtbake.EnvResult, prtbake.TransportResult, prtbake.GlossyResult, prtbake.LutResult,
-                prtbake.PrefilterResult, prtbake.IblResult, prtbake.RunResult):
+                prtbake.PrefilterResult, prtbake.IblResult, prtbake.ProbeGridResult, prtbake.RunResult):
         out.append("class %s:" % cls.__name__)
         for name, t in cls.__annotations__.items():
             t = t.replace("_np.ndarray", "NDArray[Any]")
@@ -68,13 +68,15 @@ def stubs() -> str:
     firsts = {"env": ["source: Union[StrPath, ArrayLike]"], "transport": ["mesh: Union[Mesh, StrPath]"],
               "glossy": ["mesh: Union[Mesh, StrPath]"], "lut": [],
               "prefilter": ["source: Union[StrPath, ArrayLike]"],
-              "ibl": ["source: Union[StrPath, ArrayLike]", "out_dir: StrPath"]}
+              "ibl": ["source: Union[StrPath, ArrayLike]", "out_dir: StrPath"],
+              "probes": ["scene: Union[Mesh, StrPath]"]}
     results = {"env": "EnvResult", "transport": "TransportResult", "glossy": "GlossyResult", "lut": "LutResult",
-               "prefilter": "PrefilterResult", "ibl": "IblResult"}
+               "prefilter": "PrefilterResult", "ibl": "IblResult", "probes": "ProbeGridResult"}
     for product, keys in prtbake.keywords().items():
         args = list(firsts[product]) + ["*"]
         for key, kind, default, values, _meaning in keys:
-            args.append("%s: %s = %s" % (key, _type(kind, default, values), _default(default)))
+            t = "Union[StrPath, ArrayLike, None]" if (product, key) == ("probes", "env") else _type(kind, default, values)
+            args.append("%s: %s = %s" % (key, t, _default(default)))
         args.append("device: Optional[str] = None")
         args.append("progress: Optional[Callable[[str, float], object]] = None")
         out.append("def %s(%s) -> %s: ..." % (product, ", ".join(args), results[product]))

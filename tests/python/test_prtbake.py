@@ -504,3 +504,23 @@ def test_an_environment_array_is_read_in_place(tmp_path):
         prtbake.env(sky)
     r = prtbake.env(sky, clamp_invalid=True)
     assert r.clamped_texels == 1 and np.isnan(sky[2, 3, 1])
+
+
+def test_probes_match_the_command(tmp_path):
+    args = ["--resolution", "4,2,3", "--samples", "64", "--transport-samples", "64"]
+    cli("probes", SCENE, "-o", tmp_path / "grid", *args)
+    expected = np.load(tmp_path / "grid" / "probes.npy")
+    r = prtbake.probes(SCENE, resolution=[4, 2, 3], samples=64, transport_samples=64)
+    assert r.coeffs.shape == expected.shape == (3, 2, 4, 9, 3)
+    assert r.coeffs.tobytes() == expected.tobytes()
+    assert r.coeffs.base is not None  # the library's vector, not a copy
+    assert r.state.shape == (3, 2, 4) and r.positions.shape == (3, 2, 4, 3)
+    # the environment as coefficients gives what its JSON gives
+    sky = prtbake.env(SKY, order=3)
+    sh_json = tmp_path / "sky.json"
+    cli("env", SKY, "-o", sh_json, "--order", "3")
+    a = prtbake.probes(SCENE, resolution=[2, 2, 2], samples=32, bounces=0, env=sky.coeffs)
+    b = prtbake.probes(SCENE, resolution=[2, 2, 2], samples=32, bounces=0, env=sh_json)
+    assert np.allclose(a.coeffs, b.coeffs, rtol=1e-6, atol=1e-6)  # the JSON's decimal digits
+    with pytest.raises(ValueError, match="bounds"):
+        prtbake.probes(SCENE, bounds=[0, 0, 0, 1, -1, 1])
