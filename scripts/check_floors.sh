@@ -3,7 +3,7 @@
 # host/include/prtbake, of service/ and of python/, read as an edge between folders, must point to the
 # same floor or a lower one, and the folders' graph must have no cycle. Prints each
 # offending include; exit 1 when there is one.
-#   floor 0 core      1 io      2 geometry      3 env lut prefilter transport glossy
+#   floor 0 core      1 io      2 geometry      3 env lut prefilter transport glossy probes
 #   floor 4 ibl preview      5 service      6 python (the Python module)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,14 +15,14 @@ public_folder() {
     mesh|bvh) echo geometry ;;
     env|env_sh) echo env ;;
     engine|ibl) echo ibl ;;
-    lut|prefilter|transport|glossy|preview) echo "$1" ;;
+    lut|prefilter|transport|glossy|probes|preview) echo "$1" ;;
     *) echo "?" ;;
   esac
 }
 floor() {
   case "$1" in
     core) echo 0 ;; io) echo 1 ;; geometry) echo 2 ;;
-    env|lut|prefilter|transport|glossy) echo 3 ;;
+    env|lut|prefilter|transport|glossy|probes) echo 3 ;;
     ibl|preview) echo 4 ;; service) echo 5 ;; python) echo 6 ;; kernels) echo 0 ;;
     *) echo 99 ;;
   esac
@@ -39,7 +39,7 @@ folder_of_file() {  # a source file's folder
 folder_of_include() {  # a quoted include's folder, or "" for one outside the library
   case "$1" in
     prtbake/*) public_folder "$(basename "$1" .h)" ;;
-    core/*|io/*|geometry/*|env/*|lut/*|prefilter/*|transport/*|glossy/*|preview/*|ibl/*) echo "${1%%/*}" ;;
+    core/*|io/*|geometry/*|env/*|lut/*|prefilter/*|transport/*|glossy/*|probes/*|preview/*|ibl/*) echo "${1%%/*}" ;;
     *.clh|bvh_types.h) echo kernels ;;
     *) echo "" ;;
   esac
