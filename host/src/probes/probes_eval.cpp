@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/constants.h"
+#include "probes/probe_grid_check.h"
 #include "prtbake/error.h"
 #include "prtbake/probes.h"
 
@@ -41,18 +42,30 @@ std::array<double, 3> ProbeGridLayout::probePosition(int i, int j, int k) const 
   return p;
 }
 
-std::array<double, 3> probeGridIrradianceOverPi(const ProbeGridResult& grid, const std::array<double, 3>& x,
-                                                const std::array<double, 3>& n) {
+void checkProbeGridShape(const ProbeGridResult& grid) {
   const ProbeGridLayout& layout = grid.layout;
   const int order = grid.order;
-  if (order < 1 || order > kMaxShOrder) throw UsageError("probe grid", "order " + std::to_string(order) + " is not 1.." + std::to_string(kMaxShOrder));
-  for (int r : layout.resolution)
-    if (r < 1) throw UsageError("probe grid", "a resolution of " + std::to_string(r) + " probes");
+  if (order < 1 || order > kMaxShOrder)
+    throw UsageError("probe grid", "order " + std::to_string(order) + " is not 1.." + std::to_string(kMaxShOrder));
+  for (size_t a = 0; a < 3; ++a) {
+    if (layout.resolution[a] < 1 || layout.resolution[a] > kMaxProbesPerAxis)
+      throw UsageError("probe grid", "a resolution of " + std::to_string(layout.resolution[a]) + " probes");
+    if (!(layout.boundsMax[a] > layout.boundsMin[a]) || !std::isfinite(layout.boundsMax[a] - layout.boundsMin[a]))
+      throw UsageError("probe grid", "empty or inverted bounds");
+  }
   const size_t perProbe = size_t(shCount(order)) * 3;
   if (grid.coeffs.size() != layout.count() * perProbe)
     throw UsageError("probe grid", std::to_string(grid.coeffs.size()) + " coefficients where " +
                                        std::to_string(layout.count()) + " probes of order " + std::to_string(order) +
                                        " need " + std::to_string(layout.count() * perProbe));
+}
+
+std::array<double, 3> probeGridIrradianceOverPi(const ProbeGridResult& grid, const std::array<double, 3>& x,
+                                                const std::array<double, 3>& n) {
+  checkProbeGridShape(grid);
+  const ProbeGridLayout& layout = grid.layout;
+  const int order = grid.order;
+  const size_t perProbe = size_t(shCount(order)) * 3;
   const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
   if (!(length > 0) || !std::isfinite(length)) throw UsageError("normal", "not a direction (zero or non-finite length)");
 
