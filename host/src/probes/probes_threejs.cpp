@@ -91,12 +91,14 @@ std::string probeGridThreejsLoaderBytes(const ProbeGridResult& grid, const std::
   }
   const std::string resolution = std::to_string(g.resolution[0]) + ", " + std::to_string(g.resolution[1]) + ", " +
                                  std::to_string(g.resolution[2]);
-  return "// A prtbake light probe grid for three.js r187 (docs/probes.md \"three.js\"): " + resolution +
+  const std::string probes = std::to_string(g.resolution[0]) + " x " + std::to_string(g.resolution[1]) + " x " +
+                             std::to_string(g.resolution[2]);
+  return "// A prtbake light probe grid for three.js r187 (docs/probes.md \"three.js\"): " + probes +
          " probes over the box of size (" + size + ") centred at (" + centre + "),\n"
          "// L2 radiance SH in the atlas " + ktx2Name + ". Needs an import map for 'three' and 'three/addons/'.\n"
          "//   const grid = await loadProbeGrid(renderer, scene);\n"
          "// The grid lights meshes whose materials take lights (Lambert, Phong, Standard, Physical) inside the box;\n"
-         "// it is a child of the scene itself (its bounds are its position, not its world matrix).\n"
+         "// keep it a child of the scene itself (three takes its bounds from its position, not its world matrix).\n"
          "import { LinearFilter } from 'three';\n"
          "import { KTX2Loader } from 'three/addons/loaders/KTX2Loader.js';\n"
          "import { LightProbeGridWebGL } from 'three/addons/lighting/LightProbeGridWebGL.js';\n"
