@@ -16,6 +16,7 @@
 #include "prtbake/env.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/sh.h"
+#include "engine_test_helpers.h"
 #include "test_common.h"
 
 using namespace prtbake;
@@ -23,23 +24,16 @@ using json = nlohmann::json;
 
 namespace {
 
+using test::chromiumResult;
+using test::fillPage;
+using test::nodeReady;
+using test::replaceAll;
+using test::srgb8;
+
 const std::string kSky = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/sky.exr";
 // The package the tests read: small cubes and tables so that it bakes in seconds.
 const std::string kPackageArgs = " --size 32 --lut-size 32 --quiet";
 constexpr int kTexelStride = 7;
-
-bool nodeReady() {
-  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/";
-  return test::runShell("command -v node").exitCode == 0 && test::fileExists(js + "three/package.json") &&
-         test::fileExists(js + "filament/package.json") && test::fileExists(js + "ktx-parse/package.json") &&
-         test::fileExists(js + "@babylonjs/core/package.json") && test::fileExists(js + "@khronosgroup/gltf-viewer/package.json");
-}
-
-// Declares `var`, Chromium's path, or skips the test case without Chromium or the npm engines.
-#define PRTBAKE_CHROMIUM_OR_SKIP(var, engine)                                                             \
-  const std::string var = test::chromiumPath();                                                           \
-  if (var.empty()) PRTBAKE_SKIP("chromium not found (Debian package 'chromium'): " engine " cannot run"); \
-  if (!nodeReady()) PRTBAKE_SKIP("tests/js/node_modules absent (npm ci in tests/js): " engine " not installed")
 
 std::string readText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
@@ -264,17 +258,6 @@ const tex = new CubeTexture('file://__ENV__', scene, null, false, null, async ()
 </script></body></html>
 )";
 
-std::string replaceAll(std::string s, const std::string& from, const std::string& to) {
-  for (size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size())) s.replace(at, from.size(), to);
-  return s;
-}
-
-// A page template with each placeholder replaced.
-std::string fillPage(std::string text, const std::vector<std::pair<std::string, std::string>>& values) {
-  for (const auto& [from, to] : values) text = replaceAll(text, from, to);
-  return text;
-}
-
 TEST_CASE("Engines: Babylon.js in Chromium reads the .env cube prtbake prefiltered, texel by texel", "[engines][chromium]") {
   // Babylon's texels, as its loader decodes them, against the chain prtbake prefiltered, looked up
   // where Babylon's frame puts them (x negated) in the GL orientation Babylon samples. Tolerance:
@@ -423,21 +406,6 @@ try {
 } catch (e) { settle('ERROR ' + e + ' ' + e.stack); }
 </script></body></html>
 )";
-
-// prtbake's 8-bit view of linear radiance: exposure 0, clamped, sRGB-encoded (the previews').
-double srgb8(double v) {
-  v = std::clamp(v, 0.0, 1.0);
-  return 255.0 * (v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055);
-}
-
-// Loads a page in Chromium and parses its "RESULT {json}".
-json chromiumResult(const std::string& chromium, const std::string& page) {
-  const test::CliResult res = test::chromiumPage(chromium, page);
-  const size_t at = res.output.find("RESULT {");
-  INFO(page << ": chromium_page.mjs exit " << res.exitCode << ": " << res.output.substr(0, 2000));
-  REQUIRE(at != std::string::npos);
-  return json::parse(res.output.substr(at + 7, res.output.find('\n', at) - at - 7));
-}
 
 // prtbake's diffuse sphere: albedo 1 · E(n) / π from the SH, on the sphere and camera of
 // renderSplitSumSphere (radius 1 from +Z, orthographic, image² pixels, row 0 on top).

@@ -114,4 +114,23 @@ std::string probeGridSidecarBytes(const std::string& inputPath, const ProbeOptio
                                   const ShCoeffs& environment, const std::string& environmentPath,
                                   const ProbeGridResult& grid);
 
+// --- three.js ---
+// The grid for three.js r187's LightProbeGridWebGL (examples/jsm/lighting), which holds L2
+// radiance SH in three's basis, that of prtbake without the Condon–Shortley phase:
+// k_lm = c_lm · (−1)^m (shCondonShortleyPhase), i.e. coefficients 1, 3, 5, 7 negated; the
+// shader convolves with the clamped cosine itself. Only order-3 grids can go to three.js:
+// other orders throw UsageError("--target", …). docs/probes.md "three.js".
+//
+// The KTX 2.0 file of its atlas: one 3D texture, RGBA16F (VK_FORMAT_R16G16B16A16_SFLOAT, linear,
+// no supercompression, one level), NX × NY × 7 (NZ + 2) texels. Sub-volume t = 0 … 6 holds slices
+// t (NZ + 2) … t (NZ + 2) + NZ + 1: a copy of probe slice 0, the NZ probe slices k = 0 … NZ − 1,
+// a copy of slice NZ − 1. Texel (i, j) of a slice is probe (i, j); its four components are the
+// numbers 4t … 4t + 3 of the 27 (k_0.r, k_0.g, k_0.b, k_1.r, …, k_8.b) and a 0 after them.
+std::string probeGridThreejsKtx2Bytes(const ProbeGridResult& grid);
+// An ES module for three.js r187 that exports `loadProbeGrid(renderer, scene[, url])`: it loads the
+// atlas (`ktx2Name`, beside the module unless `url` says otherwise) with three's KTX2Loader, makes
+// the LightProbeGridWebGL of the grid's bounds and resolution (not baked), adds it to `scene`
+// and resolves to it. The page's import map must resolve 'three' and 'three/addons/'.
+std::string probeGridThreejsLoaderBytes(const ProbeGridResult& grid, const std::string& ktx2Name);
+
 }  // namespace prtbake

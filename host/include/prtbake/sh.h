@@ -28,6 +28,10 @@ constexpr int kHardcodedShOrder = 4;
 
 constexpr int shIndex(int l, int m) { return l * (l + 1) + m; }
 constexpr int shCount(int order) { return order * order; }
+// (−1)^m, the Condon–Shortley phase that Y_lm and Y_l−m both carry (docs/conventions.md
+// "The phase"). A basis without it (three.js's SphericalHarmonics3 and LightProbeGrid) has
+// the same functions times this sign, so its coefficients are c_lm · shCondonShortleyPhase(m).
+constexpr double shCondonShortleyPhase(int m) { return m % 2 != 0 ? -1.0 : 1.0; }
 
 // All n² basis functions at the unit direction (x, y, z); picks the hard-coded
 // polynomials up to order 4 and the recurrence above.

@@ -109,8 +109,9 @@ size_t cubeTexelOf(const std::array<CubeFaceBasis, 6>& faces, int n, const doubl
 
 EngineSh threejsSh(const ShCoeffs& radiance) {
   EngineSh k = radianceOf(radiance);
-  for (int i : {1, 3, 5, 7})
-    for (int c = 0; c < 3; ++c) k[size_t(3 * i + c)] = -k[size_t(3 * i + c)];
+  for (int l = 0; l < 3; ++l)
+    for (int m = -l; m <= l; ++m)
+      for (int c = 0; c < 3; ++c) k[size_t(3 * shIndex(l, m) + c)] *= shCondonShortleyPhase(m);
   return k;
 }
 

@@ -14,10 +14,10 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <nlohmann/json.hpp>
 
 #include "io/exr_cube.h"
+#include "io/ktx2.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
@@ -44,57 +44,6 @@ std::string definitionText(PrefilterLobe lobe) {
       return common + "k = max(0, R.l): P = irradiance / pi (every level; roughness is not used)";
   }
   return common;
-}
-
-void put32(std::string& s, uint32_t v) {
-  for (int k = 0; k < 4; ++k) s.push_back(char((v >> (8 * k)) & 0xff));
-}
-void put64(std::string& s, uint64_t v) {
-  for (int k = 0; k < 8; ++k) s.push_back(char((v >> (8 * k)) & 0xff));
-}
-void set32(std::string& s, size_t at, uint32_t v) {
-  for (int k = 0; k < 4; ++k) s[at + size_t(k)] = char((v >> (8 * k)) & 0xff);
-}
-void set64(std::string& s, size_t at, uint64_t v) {
-  for (int k = 0; k < 8; ++k) s[at + size_t(k)] = char((v >> (8 * k)) & 0xff);
-}
-uint32_t floatBits(float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, 4);
-  return u;
-}
-
-// The Basic Data Format Descriptor of an RGBA float format (KTX 2.0 §3.10, Khronos Data
-// Format 1.3 §5): colour model RGBSDA, BT.709 primaries, linear transfer, straight alpha,
-// a 1×1×1×1 block of `bytesPerTexel` bytes, four samples R, G, B, A (channel ids 0, 1, 2, 15)
-// of `bits` bits each, flagged FLOAT | SIGNED (0xC0), with the sample range −1.0 … 1.0 that
-// float formats carry.
-std::string basicDfd(int bits) {
-  std::string d;
-  const uint32_t blockSize = 24 + 16 * 4;
-  put32(d, 4 + blockSize);                 // dfdTotalSize
-  put32(d, 0);                             // vendorId 0 (Khronos) | descriptorType 0 (basic)
-  put32(d, 2u | blockSize << 16);          // versionNumber 2 | descriptorBlockSize
-  put32(d, 1u | 1u << 8 | 1u << 16 | 0u << 24);  // RGBSDA, BT709, LINEAR, ALPHA_STRAIGHT
-  put32(d, 0);                             // texelBlockDimension 0..3 (value − 1)
-  put32(d, uint32_t(4 * bits / 8));        // bytesPlane0
-  put32(d, 0);                             // bytesPlane4..7
-  const uint32_t channels[4] = {0, 1, 2, 15};
-  for (int i = 0; i < 4; ++i) {
-    put32(d, uint32_t(i * bits) | uint32_t(bits - 1) << 16 | (0xC0u | channels[i]) << 24);
-    put32(d, 0);  // samplePosition 0..3
-    put32(d, floatBits(-1.0f));
-    put32(d, floatBits(1.0f));
-  }
-  return d;
-}
-
-// One key/value pair of the KTX 2.0 key/value data, padded to 4 bytes.
-void keyValue(std::string& kvd, const std::string& key, const std::string& value) {
-  const std::string kv = key + std::string(1, '\0') + value + std::string(1, '\0');
-  put32(kvd, uint32_t(kv.size()));
-  kvd += kv;
-  while (kvd.size() % 4) kvd.push_back('\0');
 }
 
 nlohmann::json levelList(const PrefilterResult& r) {
@@ -195,65 +144,18 @@ std::string prefilterSidecarText(const PrefilterResult& r, const EnvMap& env, co
 
 std::string prefilterKtx2Bytes(const PrefilterResult& r, bool float32, Ktx2Stats* stats) {
   if (r.levels.empty()) throw OutputError("ktx2", "nothing to write");
-  const int base = r.levels[0].spec.size;
-  const uint32_t levels = uint32_t(r.levels.size());
-  const int bytesPerTexel = float32 ? 16 : 8, align = float32 ? 16 : 8;  // lcm(texel block size, 4)
-  std::string out;
-  const unsigned char id[12] = {0xAB, 'K', 'T', 'X', ' ', '2', '0', 0xBB, '\r', '\n', 0x1A, '\n'};
-  out.append(reinterpret_cast<const char*>(id), 12);
-  put32(out, float32 ? 109u : 97u);  // VK_FORMAT_R32G32B32A32_SFLOAT | VK_FORMAT_R16G16B16A16_SFLOAT
-  put32(out, float32 ? 4u : 2u);     // typeSize
-  put32(out, uint32_t(base));        // pixelWidth
-  put32(out, uint32_t(base));        // pixelHeight
-  put32(out, 0);                     // pixelDepth
-  put32(out, 0);                     // layerCount
-  put32(out, 6);                     // faceCount
-  put32(out, levels);                // levelCount
-  put32(out, 0);                     // supercompressionScheme
-  const size_t indexAt = out.size();
-  for (int i = 0; i < 4; ++i) put32(out, 0);  // dfd, kvd offsets and lengths (set below)
-  put64(out, 0);                              // sgdByteOffset
-  put64(out, 0);                              // sgdByteLength
-  const size_t levelIndexAt = out.size();
-  for (uint32_t i = 0; i < levels; ++i) put64(out, 0), put64(out, 0), put64(out, 0);
-  const std::string dfd = basicDfd(float32 ? 32 : 16);
-  const size_t dfdAt = out.size();
-  out += dfd;
-  std::string kvd;
-  keyValue(kvd, "KTXwriter", std::string("prtbake ") + version());
+  ktx2::Layout layout;
+  layout.width = layout.height = uint32_t(r.levels[0].spec.size);
+  layout.faces = 6;
+  layout.float32 = float32;
+  // Faces +X … −Z, rows top first; alpha 1.
+  std::vector<ktx2::Level> levels;
+  for (const PrefilterLevel& l : r.levels)
+    levels.push_back({l.rgb.data(), 3, 6 * size_t(l.spec.size) * size_t(l.spec.size)});
   nlohmann::json meta = {{"lobe", toString(r.options.lobe)}, {"schedule", toString(r.options.schedule)}};
   for (const auto& l : r.levels) meta["roughness"].push_back(l.spec.roughness);
-  keyValue(kvd, "prtbake.prefilter", meta.dump());
-  const size_t kvdAt = out.size();
-  out += kvd;
-  set32(out, indexAt, uint32_t(dfdAt));
-  set32(out, indexAt + 4, uint32_t(dfd.size()));
-  set32(out, indexAt + 8, uint32_t(kvdAt));
-  set32(out, indexAt + 12, uint32_t(kvd.size()));
-  // Level data, smallest level first, each aligned; faces +X … −Z, rows top first.
   long long clamped = 0;
-  for (int li = int(levels) - 1; li >= 0; --li) {
-    const PrefilterLevel& l = r.levels[size_t(li)];
-    while (out.size() % size_t(align)) out.push_back('\0');
-    const size_t at = out.size(), texels = 6 * size_t(l.spec.size) * size_t(l.spec.size);
-    std::string data(texels * size_t(bytesPerTexel), '\0');
-    for (size_t t = 0; t < texels; ++t) {
-      for (int c = 0; c < 4; ++c) {
-        float v = c < 3 ? l.rgb[3 * t + size_t(c)] : 1.0f;
-        if (float32) {
-          std::memcpy(&data[16 * t + 4 * size_t(c)], &v, 4);
-        } else {
-          if (v > kHalfMax) v = kHalfMax, ++clamped;
-          const uint16_t bits = half(v).bits();
-          std::memcpy(&data[8 * t + 2 * size_t(c)], &bits, 2);
-        }
-      }
-    }
-    out += data;
-    set64(out, levelIndexAt + 24 * size_t(li), at);
-    set64(out, levelIndexAt + 24 * size_t(li) + 8, data.size());
-    set64(out, levelIndexAt + 24 * size_t(li) + 16, data.size());
-  }
+  std::string out = ktx2::rgbaFloatBytes(layout, levels, {{"prtbake.prefilter", meta.dump()}}, &clamped);
   if (stats) stats->clampedToHalf = clamped;
   return out;
 }

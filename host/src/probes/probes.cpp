@@ -277,16 +277,6 @@ std::string detail::probesOptions(int order, int envOrder, int packetWidth) {
          " -DBVH_PACKET=" + std::to_string(packetWidth);
 }
 
-std::array<double, 3> ProbeGridLayout::cell() const {
-  return {(boundsMax[0] - boundsMin[0]) / resolution[0], (boundsMax[1] - boundsMin[1]) / resolution[1],
-          (boundsMax[2] - boundsMin[2]) / resolution[2]};
-}
-
-std::array<double, 3> ProbeGridLayout::probePosition(int i, int j, int k) const {
-  const auto s = cell();
-  return {boundsMin[0] + (i + 0.5) * s[0], boundsMin[1] + (j + 0.5) * s[1], boundsMin[2] + (k + 0.5) * s[2]};
-}
-
 ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& o) {
   ProbeGridLayout g;
   if (o.boundsMin.has_value() != o.boundsMax.has_value()) throw UsageError("--bounds", "needs both corners");
