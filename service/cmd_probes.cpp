@@ -23,6 +23,7 @@ int runProbes(const CommandLine& cl) {
   if (dir.empty()) throw UsageError("probes", "missing -o DIR");
   const std::string target = cl.getChoice("target", "raw", {"raw", "threejs"});
   nlohmann::json outputs = {{"npy", dir + "/probes.npy"}, {"json", dir + "/probes.json"}};
+  if (target == "threejs") outputs["ktx2"] = dir + "/probes.ktx2", outputs["js"] = dir + "/probes.mjs";
   const nlohmann::json p = productParams(cl, "probes", outputs);
   const ProbeOptions o = jobs::probeOptionsFrom(p);
 
@@ -42,7 +43,10 @@ int runProbes(const CommandLine& cl) {
   files.emplace_back(dir + "/probes.npy", probeGridNpyBytes(g));
   files.emplace_back(dir + "/probes.json",
                      probeGridSidecarBytes(input, o, env, p["env"].is_null() ? "" : p["env"].get<std::string>(), g));
-  if (target == "threejs") throw UsageError("--target", "threejs is not available in this build yet");
+  if (target == "threejs") {
+    files.emplace_back(dir + "/probes.ktx2", probeGridThreejsKtx2Bytes(g));
+    files.emplace_back(dir + "/probes.mjs", probeGridThreejsLoaderBytes(g, "probes.ktx2"));
+  }
   if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
     throw OutputError(dir, std::string("cannot create the directory: ") + std::strerror(errno));
   std::vector<std::unique_ptr<AtomicFile>> staged;
@@ -62,7 +66,8 @@ PRTBAKE_COMMAND(Command{
     "probes", "a light probe grid: SH radiance at points in space, for moving objects",
     "prtbake probes SCENE -o DIR [--env SH.json|ENVMAP] [--resolution NX,NY,NZ | --spacing D]\n"
     "       [--bounds X0,Y0,Z0,X1,Y1,Z1] [--order 2|3] [--samples N] [--bounces B] [--target raw|threejs]\n"
-    "Writes DIR/probes.npy (float32 [NZ, NY, NX, n^2, 3]) and DIR/probes.json (layout, validity, timings).",
+    "Writes DIR/probes.npy (float32 [NZ, NY, NX, n^2, 3]) and DIR/probes.json (layout, validity, timings);\n"
+    "--target threejs also DIR/probes.ktx2 (LightProbeGridWebGL's 3D atlas, RGBA16F) and DIR/probes.mjs (its loader).",
     productOptions("probes", {{"output", true, "the output directory (-o)"},
                               {"target", true, "raw (.npy and sidecar, default) | threejs (also the 3D atlas)"}}),
     1, 1, runProbes});

@@ -78,6 +78,11 @@ ExecResult runProbes(const Job& job, ExecContext& ctx) {
   std::vector<std::pair<std::string, std::string>> files;
   if (ctx.wants("npy")) files.emplace_back(ctx.output("npy"), probeGridNpyBytes(g));
   if (ctx.wants("json")) files.emplace_back(ctx.output("json"), probeGridSidecarBytes(job.input, o, env, envPath, g));
+  if (ctx.wants("ktx2")) files.emplace_back(ctx.output("ktx2"), probeGridThreejsKtx2Bytes(g));
+  if (ctx.wants("js")) {  // the loader names the atlas by its file name, beside it
+    const std::string atlas = ctx.output("ktx2");
+    files.emplace_back(ctx.output("js"), probeGridThreejsLoaderBytes(g, atlas.substr(atlas.find_last_of('/') + 1)));
+  }
   for (const auto& [path, bytes] : files) writeFileAtomic(path, bytes);
   ExecResult result;
   result.inputFiles = filesRead(job, read);
@@ -93,7 +98,7 @@ JobType probesJobType() {
   JobType t;
   t.name = "probes";
   t.input = InputKind::File;
-  t.outputKinds = {"npy", "json"};
+  t.outputKinds = {"npy", "json", "ktx2", "js"};
   t.keys = {{"resolution", ValueKind::NumberList, nullptr, 1, kMaxProbesPerAxis, {},
              "probes along x, y and z (3 integers; none: from spacing)"},
             number("spacing", nullptr, 1e-6, 1e9, "the probes' spacing: NX = round(size_x / spacing), ... (none: 1/8 of the largest side)"),
@@ -125,6 +130,11 @@ JobType probesJobType() {
                                                                 p["env"].get<std::string>().size() > 5 &&
                                                                 p["env"].get<std::string>().substr(p["env"].get<std::string>().size() - 5) == ".json")))
       problems.push_back({"env_order", "only applies to an environment map"});
+    const bool ktx2 = raw.contains("outputs") && raw["outputs"].is_object() && raw["outputs"].contains("ktx2");
+    const bool js = raw.contains("outputs") && raw["outputs"].is_object() && raw["outputs"].contains("js");
+    if (js && !ktx2) problems.push_back({"outputs", "a js output (the three.js loader) needs the ktx2 output it loads"});
+    if (ktx2 && p["order"] != 3)
+      problems.push_back({"order", "three.js's LightProbeGridWebGL holds L2 probes: a ktx2 output needs order 3"});
     if (raw.contains("transport_samples") && p["bounces"] == 0)
       problems.push_back({"transport_samples", "only applies with bounces >= 1"});
     if (problems.empty() && raw.contains("bounds")) {

@@ -283,7 +283,7 @@ TEST_CASE("Probes: bad grids are refused with one line", "[probes]") {
   CHECK_THROWS_AS(computeProbeGrid(test::runtime(), room, white(), o), InputError);
 }
 
-TEST_CASE("prtbake probes: bad grids get one line and no output; the job writes the command's bytes", "[probes][cli]") {
+TEST_CASE("prtbake probes: bad grids get one line and no output, and a job writes the command bytes", "[probes][cli]") {
   const std::string dir = test::tempDir("probes-cli");
   const std::string scene = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf";
   struct Bad {

@@ -13,6 +13,7 @@
 
 #include "engine_test_helpers.h"
 #include "prtbake/error.h"
+#include "prtbake/mesh.h"
 #include "prtbake/probes.h"
 #include "prtbake/sh.h"
 #include "test_common.h"
@@ -308,33 +309,15 @@ try {
 
 }  // namespace
 
-TEST_CASE("Probes: three.js's LightProbeGridWebGL lights spheres with prtbake's atlas as prtbake evaluates the grid",
-          "[probes][engines][chromium]") {
-  // Acceptance: mean |Δ| ≤ 2 8-bit levels (sRGB-encoded, as prtbake's previews show linear values)
-  // over the spheres' pixels, the rim (|n_xy| > 0.95: silhouette pixels of a tessellated sphere)
-  // left out. What separates the two sides, each well under a level: the half-float atlas (2^-11
-  // relative per coefficient), the GPU's linear filter (weights of finite precision), three's
-  // 6-digit SH constants, and the tessellated sphere's interpolated positions and normals against
-  // the exact sphere prtbake evaluates (measured: 0.016 levels in all). The wrong exports must fail
-  // the same comparison (measured: sub-volumes reversed 149, z flipped 24.6, the Condon–Shortley
-  // signs kept 11.4). The oracle's own sample point matters too: evaluated at the surface point
-  // without three's half-cell step along the normal it is 4.4 levels off, at the sphere's centre
-  // (with the step) 1.3.
+// three.js's LightProbeGridWebGL, in Chromium, lights white Lambert spheres (radius kRadius, centres
+// `spheres`) with the grid's atlas, seen orthographically down −z over [left, right] × [bottom, top]
+// in W × H pixels; each pixel is compared with prtbake's evaluation (acceptance: mean |Δ| ≤ 2
+// levels), and the wrong exports must fail the same comparison.
+static void compareWithThree(const std::string& chromium, const std::string& dir, const ProbeGridResult& g,
+                             const std::vector<std::array<double, 3>>& spheres, double kRadius, double left, double right,
+                             double bottom, double top, int W, int H) {
   constexpr double kMeanLevels = 2.0;
-  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "three.js");
-  const std::string dir = test::tempDir("probes_threejs");
-  const ProbeGridResult g = makeGrid();
   const auto cell = g.layout.cell();
-
-  // Spheres of radius 0.12 (a sixth of the smallest cell) inside the box, far enough from its faces
-  // (radius + half a cell) that three's sample point, the surface point moved half a cell along
-  // the normal, stays inside the box and the grid lights every pixel; some of them reach beyond the
-  // outermost probes' centres, where the grid is clamped. None overlap on screen.
-  constexpr double kRadius = 0.12;
-  const std::vector<std::array<double, 3>> spheres = {{-0.55, 0.85, -1.5}, {0.75, 0.9, 0.8},   {1.95, 1.0, -0.3},
-                                                      {-0.4, 1.95, 0.2},   {0.8, 1.6, -1.1},   {1.9, 1.95, 0.85}};
-  const double left = -0.8, right = 2.2, bottom = 0.6, top = 2.2;
-  const int W = 450, H = 240;  // 150 pixels per unit: each sphere 36 pixels across
 
   const std::string good = probeGridThreejsKtx2Bytes(g);
   const std::vector<std::pair<std::string, std::string>> files = {
@@ -424,4 +407,54 @@ TEST_CASE("Probes: three.js's LightProbeGridWebGL lights spheres with prtbake's 
   CHECK(reversed > kMeanLevels);
   CHECK(flipped > kMeanLevels);
   CHECK(phase > kMeanLevels);
+}
+
+TEST_CASE("Probes: three.js's LightProbeGridWebGL lights spheres with prtbake's atlas as prtbake evaluates the grid",
+          "[probes][engines][chromium]") {
+  // Acceptance: mean |Δ| ≤ 2 8-bit levels (sRGB-encoded, as prtbake's previews show linear values)
+  // over the spheres' pixels, the rim (|n_xy| > 0.95: silhouette pixels of a tessellated sphere)
+  // left out. What separates the two sides, each well under a level: the half-float atlas (2^-11
+  // relative per coefficient), the GPU's linear filter (weights of finite precision), three's
+  // 6-digit SH constants, and the tessellated sphere's interpolated positions and normals against
+  // the exact sphere prtbake evaluates (measured: 0.016 levels in all). The wrong exports must fail
+  // the same comparison (measured: sub-volumes reversed 149, z flipped 24.6, the Condon–Shortley
+  // signs kept 11.4). The oracle's own sample point matters too: evaluated at the surface point
+  // without three's half-cell step along the normal it is 4.4 levels off, at the sphere's centre
+  // (with the step) 1.3.
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "three.js");
+  // Spheres of radius 0.12 (a sixth of the smallest cell) inside the box, far enough from its faces
+  // (radius + half a cell) that three's sample point, the surface point moved half a cell along
+  // the normal, stays inside the box and the grid lights every pixel; some of them reach beyond the
+  // outermost probes' centres, where the grid is clamped. None overlap on screen; 150 pixels per
+  // unit: each sphere 36 pixels across.
+  compareWithThree(chromium, test::tempDir("probes_threejs"), makeGrid(),
+                   {{-0.55, 0.85, -1.5}, {0.75, 0.9, 0.8}, {1.95, 1.0, -0.3}, {-0.4, 1.95, 0.2}, {0.8, 1.6, -1.1},
+                    {1.9, 1.95, 0.85}},
+                   0.12, -0.8, 2.2, 0.6, 2.2, 450, 240);
+}
+
+TEST_CASE("Probes: three.js's LightProbeGridWebGL lights spheres in the demo scene with the grid prtbake baked",
+          "[probes][engines][chromium]") {
+  // The demo scene's grid (8 x 4 x 8 over its bounds, one bounce, under the demo sky's SH), baked by
+  // computeProbeGrid and scaled by one factor into the 8-bit range (three clamps at 1): the same
+  // comparison as above, spheres between the scene's objects at several heights.
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "three.js");
+  const Mesh scene = loadMesh(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf");
+  ShCoeffs sky;
+  sky.order = 3;
+  sky.rgb.assign(9, Rgb{0, 0, 0});
+  const double l0 = std::sqrt(4 * 3.14159265358979323846);
+  sky.rgb[0] = Rgb{l0, l0, l0};
+  sky.rgb[2] = Rgb{0.8, 0.7, 0.5};   // brighter above (Y_1^0 ∝ y)
+  sky.rgb[3] = Rgb{-0.3, 0.1, 0.4};  // and bluer towards −x
+  ProbeOptions o;
+  o.resolution = std::array<int, 3>{8, 4, 8};
+  o.samples = 256;
+  o.transportSamples = 128;
+  ProbeGridResult g = computeProbeGrid(test::runtime(), scene, sky, o);
+  for (float& c : g.coeffs) c *= 0.6f;
+  compareWithThree(chromium, test::tempDir("probes_threejs_scene"), g,
+                   {{-2.2, 0.35, 1.0}, {-1.0, 0.7, -0.5}, {0.2, 0.45, 0.3}, {1.3, 0.95, 1.8}, {2.3, 0.6, -2.0},
+                    {0.9, 0.35, -1.2}},
+                   0.12, -2.8, 2.8, 0.0, 1.4, 840, 210);
 }
