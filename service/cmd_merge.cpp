@@ -73,9 +73,14 @@ std::string partialProblem(const jobs::Job& job, int i, int n, json* manifest) {
   const std::string path = part.outputs.front().path;
   if (report.value("partial_sha256", "") != sha256File(path))
     return "shard " + s.name() + " is not usable: " + path + " does not match its manifest's SHA-256";
-  const auto [first, count] = jobs::vertexRange(jobs::manifestInt(report, "mesh_vertices", size_t(0)), i, n);
-  if (jobs::manifestInt(report, "first_vertex", size_t(1) << 62) != first || jobs::manifestInt(report, "vertex_count", size_t(1) << 62) != count)
-    return "shard " + s.name() + " is not usable: its vertex range does not match shard " + s.name();
+  // Transport and glossy shards hold vertex ranges, probe shards ranges of the grid's probes.
+  const bool probes = report.contains("grid_probes");
+  const auto [first, count] =
+      jobs::vertexRange(jobs::manifestInt(report, probes ? "grid_probes" : "mesh_vertices", size_t(0)), i, n);
+  if (jobs::manifestInt(report, probes ? "first_probe" : "first_vertex", size_t(1) << 62) != first ||
+      jobs::manifestInt(report, probes ? "probe_count" : "vertex_count", size_t(1) << 62) != count)
+    return "shard " + s.name() + " is not usable: its " + (probes ? "probe" : "vertex") + " range does not match shard " +
+           s.name();
   return "";
 }
 
@@ -94,6 +99,7 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
                          jobs::ShardSpec{0, n}.name());
   if (!problems.empty()) return problems;
   if (job.type->name == "glossy") return jobs::mergeGlossySplit(job, n, manifests, info);
+  if (job.type->name == "probes") return jobs::mergeProbesSplit(job, n, manifests, info);
 
   const TransportOptions options = jobs::transportOptionsFrom(job.params);
   TransportResult r;
@@ -185,7 +191,8 @@ int runMerge(const CommandLine& cl) {
           }
           ++merged;
           reporter.status("[merged] " + job.label + " (" + std::to_string(n) + " shards, " +
-                          std::to_string(jobs::manifestInt(info, "vertices", size_t(0))) + " vertices, " +
+                          (info.contains("probes") ? std::to_string(jobs::manifestInt(info, "probes", size_t(0))) + " probes, "
+                                                   : std::to_string(jobs::manifestInt(info, "vertices", size_t(0))) + " vertices, ") +
                           formatSeconds(secondsSince(tJob)) + ")");
           reporter.event({{"event", "job_end"}, {"id", job.label}, {"status", "merged"}});
         } catch (const std::exception& e) {

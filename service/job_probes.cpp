@@ -5,6 +5,8 @@
 
 #include "jobs.h"
 #include "prtbake/atomic_file.h"
+#include "prtbake/hash.h"
+#include "shard.h"
 #include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
@@ -67,6 +69,33 @@ ShCoeffs probeEnvironment(const json& p, const std::function<Runtime&()>& runtim
 
 namespace {
 
+// The outputs a probes job asks for, from a whole grid (`outputs`: kind → path).
+void writeProbeOutputs(const std::map<std::string, std::string>& outputs, const std::string& input,
+                       const ProbeOptions& o, const ShCoeffs& env, const std::string& envPath, const ProbeGridResult& g) {
+  std::vector<std::pair<std::string, std::string>> files;
+  for (const auto& [kind, path] : outputs) {
+    if (kind == "npy") files.emplace_back(path, probeGridNpyBytes(g));
+    if (kind == "json") files.emplace_back(path, probeGridSidecarBytes(input, o, env, envPath, g));
+    if (kind == "ktx2") files.emplace_back(path, probeGridThreejsKtx2Bytes(g));
+    if (kind == "js") {  // the loader names the atlas by its file name, beside it
+      const std::string atlas = outputs.at("ktx2");
+      files.emplace_back(path, probeGridThreejsLoaderBytes(g, atlas.substr(atlas.find_last_of('/') + 1)));
+    }
+  }
+  for (const auto& [path, bytes] : files) writeFileAtomic(path, bytes);
+}
+
+json probeReport(const ProbeGridResult& g) {
+  return {{"probes", g.probeCount}, {"moved", g.moved}, {"invalid", g.invalid}, {"fill_passes", g.fillPasses},
+          {"samples_per_probe", g.samples}, {"rings", g.rings}, {"segments", g.segments}, {"rays", g.rays},
+          {"environment_order", g.environmentOrder}, {"device", g.device},
+          {"timings", {{"total_seconds", g.totalSeconds}, {"trace_seconds", g.traceSeconds},
+                       {"surfaces_seconds", g.surfaceSeconds}, {"relocation_seconds", g.relocateSeconds},
+                       {"bvh_seconds", g.bvhSeconds}}}};
+}
+
+std::string envPathOf(const json& p) { return p["env"].is_null() ? "" : p["env"].get<std::string>(); }
+
 ExecResult runProbes(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const ProbeOptions o = probeOptionsFrom(p);
@@ -74,25 +103,100 @@ ExecResult runProbes(const Job& job, ExecContext& ctx) {
   std::vector<std::string> read = mesh.inputFiles;
   const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
   const ProbeGridResult g = computeProbeGrid(ctx.runtime(), mesh, env, o);
-  const std::string envPath = p["env"].is_null() ? "" : p["env"].get<std::string>();
-  std::vector<std::pair<std::string, std::string>> files;
-  if (ctx.wants("npy")) files.emplace_back(ctx.output("npy"), probeGridNpyBytes(g));
-  if (ctx.wants("json")) files.emplace_back(ctx.output("json"), probeGridSidecarBytes(job.input, o, env, envPath, g));
-  if (ctx.wants("ktx2")) files.emplace_back(ctx.output("ktx2"), probeGridThreejsKtx2Bytes(g));
-  if (ctx.wants("js")) {  // the loader names the atlas by its file name, beside it
-    const std::string atlas = ctx.output("ktx2");
-    files.emplace_back(ctx.output("js"), probeGridThreejsLoaderBytes(g, atlas.substr(atlas.find_last_of('/') + 1)));
-  }
-  for (const auto& [path, bytes] : files) writeFileAtomic(path, bytes);
+  writeProbeOutputs(ctx.outputPaths, job.input, o, env, envPathOf(p), g);
   ExecResult result;
   result.inputFiles = filesRead(job, read);
-  result.report = {{"probes", g.layout.count()}, {"moved", g.moved}, {"invalid", g.invalid},
-                   {"samples_per_probe", g.samples}, {"rays", g.rays},
-                   {"timings", {{"total_seconds", g.totalSeconds}, {"trace_seconds", g.traceSeconds}}}};
+  result.report = probeReport(g);
+  return result;
+}
+
+// One shard's probe range of a split probes job (docs/scaleout.md): the partial .npy, probes
+// traced and relocated but not filled (the merge fills the whole grid).
+ExecResult runProbesPart(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  const int index = p.at("shard").at("index").get<int>(), count = p.at("shard").at("count").get<int>();
+  ProbeOptions o = probeOptionsFrom(p);
+  const Mesh mesh = loadMesh(job.input);
+  std::vector<std::string> read = mesh.inputFiles;
+  const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
+  const size_t total = probeGridLayout(mesh, o).count();
+  const auto [first, n] = vertexRange(total, index, count);
+  o.firstProbe = first;
+  o.probeCount = n;
+  const ProbeGridResult g = computeProbeGrid(ctx.runtime(), mesh, env, o);
+  const std::string bytes = probeRangeNpyBytes(g);
+  writeFileAtomic(ctx.output("npy"), bytes);
+  ExecResult result;
+  result.inputFiles = filesRead(job, read);
+  result.report = probeReport(g);
+  result.report["shard"] = {{"index", index}, {"count", count}};
+  result.report["first_probe"] = first;
+  result.report["probe_count"] = n;
+  result.report["grid_probes"] = total;
+  result.report["partial_sha256"] = sha256Hex(bytes.data(), bytes.size());
   return result;
 }
 
 }  // namespace
+
+const JobType& probesPartialType() {
+  static const JobType type = [] {
+    JobType t;
+    t.name = "probes_shard";
+    t.input = InputKind::File;
+    t.outputKinds = {"npy"};
+    t.execute = runProbesPart;
+    return t;
+  }();
+  return type;
+}
+
+std::vector<std::string> mergeProbesSplit(const Job& job, int n, const std::vector<json>& manifests, json* info) {
+  const json& p = job.params;
+  const ProbeOptions o = probeOptionsFrom(p);
+  const size_t total = manifestInt(manifests[0]["report"], "grid_probes", size_t(0));
+  ProbeGridResult g;
+  g.order = o.order;
+  g.probeCount = total;
+  const size_t nc = size_t(g.order) * g.order * 3;
+  double seconds = 0;
+  for (int i = 0; i < n; ++i) {
+    const json& rep = manifests[size_t(i)]["report"];
+    const std::string path = partialPath(job, i, n);
+    size_t rows = 0, columns = 0;
+    const std::vector<float> part = readPartialNpy(path, &rows, &columns);
+    if (manifestInt(rep, "grid_probes", size_t(0)) != total || rows != manifestInt(rep, "probe_count", size_t(0)) ||
+        columns != nc + kProbeRangeExtraColumns)
+      throw InputError(path, "shape does not match the job's grid (" + std::to_string(total) + " probes of order " +
+                                 std::to_string(g.order) + ")");
+    appendProbeRange(g, part, rows);
+    g.rays += manifestInt(rep, "rays", uint64_t(0));
+    seconds += rep["timings"].value("total_seconds", 0.0);
+  }
+  if (g.state.size() != total) return {"the shards hold " + std::to_string(g.state.size()) + " probes of " + std::to_string(total)};
+  const json& first = manifests[0]["report"];
+  g.samples = first.value("samples_per_probe", 0);
+  g.rings = first.value("rings", 0);
+  g.segments = first.value("segments", 0);
+  g.environmentOrder = first.value("environment_order", 0);
+  g.device = first.value("device", std::string());
+  g.totalSeconds = seconds;
+  for (uint8_t s : g.state) g.moved += s == 1, g.invalid += s == 2;
+  const Mesh mesh = loadMesh(job.input);  // the layout's bounds come from the scene
+  g.layout = probeGridLayout(mesh, o);
+  if (g.layout.count() != total) throw InputError(job.input, "gives another grid than the shards saw");
+  fillInvalidProbes(g);
+  // The sidecar names the environment and its order; the coefficients are already in the grid.
+  ShCoeffs env;
+  env.order = first.value("environment_order", 1);
+  std::map<std::string, std::string> outputs;
+  for (const auto& out : job.outputs) outputs[out.kind] = out.path;
+  removeOldManifest(job);
+  writeProbeOutputs(outputs, job.input, o, env, envPathOf(p), g);
+  writeMergedManifest(job, manifests[0], g.device, seconds, probeReport(g));
+  *info = {{"probes", total}};
+  return {};
+}
 
 JobType probesJobType() {
   JobType t;
@@ -146,6 +250,7 @@ JobType probesJobType() {
     return problems;
   };
   t.execute = runProbes;
+  t.splittable = true;
   return t;
 }
 

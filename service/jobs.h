@@ -102,6 +102,8 @@ JobType glossyJobType();
 // and its lighting (the key env: a radiance SH JSON, an environment map projected to env_order,
 // or none: constant white), the files read appended to *files.
 JobType probesJobType();
+const JobType& probesPartialType();
+std::vector<std::string> mergeProbesSplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
 ProbeOptions probeOptionsFrom(const json& params);
 ShCoeffs probeEnvironment(const json& params, const std::function<Runtime&()>& runtime, std::vector<std::string>* files);
 const JobType& glossyPartialType();

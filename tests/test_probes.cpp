@@ -353,3 +353,49 @@ TEST_CASE("Probes: the packet kernel and the one-ray kernel agree", "[probes]") 
   INFO("largest |difference| " << worst << " of " << largest);
   CHECK(worst <= 1e-5 * largest);
 }
+
+TEST_CASE("A split probes job: shards then merge give the whole run's bytes", "[probes][cli]") {
+  // The demo scene with a solid block reaching into the grid, so that shards relocate probes
+  // (each probe's rays depend on its grid index only) and leave invalid ones to the merge's fill.
+  const std::string dir = test::tempDir("probes-split");
+  Mesh scene = loadMesh(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf");
+  appendMesh(scene, makeBox(-1.2, 0.6, false, 0.7));
+  {
+    std::ofstream obj(dir + "/scene.obj");
+    for (size_t v = 0; v < scene.vertexCount(); ++v)
+      obj << "v " << scene.positions[3 * v] << ' ' << scene.positions[3 * v + 1] << ' ' << scene.positions[3 * v + 2] << '\n';
+    for (size_t t = 0; t < scene.triangleCount(); ++t)
+      obj << "f " << scene.indices[3 * t] + 1 << ' ' << scene.indices[3 * t + 1] + 1 << ' ' << scene.indices[3 * t + 2] + 1 << '\n';
+  }
+  auto job = [&](const std::string& id, const std::string& out, bool split) {
+    nlohmann::json j = {{"id", id}, {"type", "probes"}, {"input", "scene.obj"}, {"resolution", {6, 3, 5}},
+                        {"samples", 64}, {"transport_samples", 32},
+                        {"outputs", {{"npy", out + "/probes.npy"}, {"json", out + "/probes.json"},
+                                     {"ktx2", out + "/probes.ktx2"}, {"js", out + "/probes.mjs"}}}};
+    if (split) j["split"] = true;
+    return j;
+  };
+  std::ofstream(dir + "/jobs.json") << nlohmann::json{{"jobs", {job("split", "s", true), job("whole", "w", false)}}}.dump();
+  for (int i = 0; i < 3; ++i) {
+    const auto r = test::runCli("run '" + dir + "/jobs.json' --shard " + std::to_string(i) + "/3 --quiet");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+  }
+  const auto m = test::runCli("merge '" + dir + "/jobs.json' --shards 3");
+  INFO(m.output);
+  REQUIRE(m.exitCode == 0);
+  auto bytes = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string whole = bytes(dir + "/w/probes.npy");
+  REQUIRE(whole.size() == 128 + 90 * 27 * 4);
+  CHECK(bytes(dir + "/s/probes.npy") == whole);
+  CHECK(bytes(dir + "/s/probes.ktx2") == bytes(dir + "/w/probes.ktx2"));
+  const auto sidecar = nlohmann::json::parse(bytes(dir + "/s/probes.json"));
+  const auto wholeSidecar = nlohmann::json::parse(bytes(dir + "/w/probes.json"));
+  CHECK(sidecar["validity"]["moved_probes"] == wholeSidecar["validity"]["moved_probes"]);
+  CHECK(sidecar["validity"]["invalid_probes"] == wholeSidecar["validity"]["invalid_probes"]);
+  CHECK(wholeSidecar["validity"]["moved"].get<int>() > 0);
+  CHECK(wholeSidecar["validity"]["invalid"].get<int>() > 0);
+}

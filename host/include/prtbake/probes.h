@@ -65,6 +65,13 @@ struct ProbeOptions {
   // job: the grid would see only the environment); false lets
   // a library caller bake an empty scene (the environment at every probe).
   bool requireGeometry = true;
+  // The probes [firstProbe, firstProbe + probeCount) of the grid (x fastest; unset: to the
+  // last), traced and relocated as in a whole run: each probe's rays depend only on its index
+  // and the seed, so a range's probes are bit-identical to the same probes of a whole run on the
+  // same device. The fill of invalid probes needs their neighbours, so a range leaves them as
+  // traced (state 2); fillInvalidProbes completes a grid assembled from ranges.
+  size_t firstProbe = 0;
+  std::optional<size_t> probeCount;
   // Rays per packet: 16 (a probe's rays 16 at a time over the wide BVH) or 0 (one at a time;
   // the results agree up to float summation order).
   int packetWidth = 16;
@@ -73,7 +80,9 @@ struct ProbeOptions {
 struct ProbeGridResult {
   ProbeGridLayout layout;
   int order = 0;
-  // count × order² × 3 floats, probe-major with x fastest, then y, then z ([NZ][NY][NX][n²][3]).
+  size_t firstProbe = 0;                // the range computed (ProbeOptions::firstProbe)
+  size_t probeCount = 0;                // probes held: the range's size (the whole grid by default)
+  // probeCount × order² × 3 floats, probe-major with x fastest, then y, then z ([NZ][NY][NX][n²][3]).
   std::vector<float> coeffs;
   std::vector<float> positions;         // count × 3: where each probe was baked (moved ones included)
   std::vector<uint8_t> state;           // count: 0 valid, 1 moved, 2 invalid (filled from neighbours)
@@ -99,6 +108,10 @@ ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& options);
 ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& environment,
                                  const ProbeOptions& options);
 
+// Fills every invalid probe (state 2) of a whole grid with the mean of its valid (or already
+// filled) face neighbours, pass after pass; sets and returns grid.fillPasses.
+int fillInvalidProbes(ProbeGridResult& grid);
+
 // The irradiance over π (the diffuse exit radiance for albedo 1) that the grid gives at
 // point x for normal n: the probes' coefficients trilinearly interpolated (clamped at the
 // outermost probes' centres), convolved with the clamped cosine and evaluated at n.
@@ -108,6 +121,12 @@ std::array<double, 3> probeGridIrradianceOverPi(const ProbeGridResult& grid, con
 // --- outputs (atomic; *Bytes twins return the contents) ---
 // NumPy .npy, float32, shape [NZ, NY, NX, n², 3].
 std::string probeGridNpyBytes(const ProbeGridResult& grid);
+// A range's probes (a shard of a split job) as a 2-D .npy, one row per probe: its n² × 3
+// coefficients, then its position (3), state and back-face fraction; and those rows appended
+// to a grid being assembled (its order set).
+constexpr size_t kProbeRangeExtraColumns = 5;
+std::string probeRangeNpyBytes(const ProbeGridResult& range);
+void appendProbeRange(ProbeGridResult& grid, const std::vector<float>& rows, size_t count);
 // The sidecar JSON: parameters, layout, conventions, validity (every moved and invalid probe),
 // sample counts and timings.
 std::string probeGridSidecarBytes(const std::string& inputPath, const ProbeOptions& options,

@@ -236,7 +236,7 @@ std::vector<std::array<double, 3>> relocationOffsets(double r) {
 
 // Invalid probes take the mean of their valid (or already filled) face neighbours, pass after
 // pass, so that a block of invalid probes fills from its rim. Returns the passes taken.
-int fillInvalid(ProbeGridResult& g) {
+int fillPasses(ProbeGridResult& g) {
   const auto& res = g.layout.resolution;
   const size_t nc = size_t(g.order) * g.order * 3;
   std::vector<uint8_t> known(g.state.size());
@@ -271,6 +271,14 @@ int fillInvalid(ProbeGridResult& g) {
 }
 
 }  // namespace
+
+int fillInvalidProbes(ProbeGridResult& g) {
+  if (g.probeCount != g.layout.count() || g.state.size() != g.probeCount)
+    throw UsageError("probes", "the fill needs the whole grid (" + std::to_string(g.layout.count()) + " probes, got " +
+                                   std::to_string(g.probeCount) + ")");
+  g.fillPasses = fillPasses(g);
+  return g.fillPasses;
+}
 
 std::string detail::probesOptions(int order, int envOrder, int packetWidth) {
   return "-DPROBE_ORDER=" + std::to_string(order) + " -DENV_ORDER=" + std::to_string(envOrder) +
@@ -352,16 +360,23 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
   ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, o.packetWidth);
   // A probe inside geometry (back faces over the limit) is relocated or filled: its trace may stop.
   const float stop = float(o.backfaceLimit * 4 * kPi);
-  const size_t n = g.layout.count();
+  const size_t total = g.layout.count();
+  if (o.firstProbe > total || (o.probeCount && *o.probeCount > total - o.firstProbe))
+    throw UsageError("probe range", "probes " + std::to_string(o.firstProbe) + " + " +
+                                        std::to_string(o.probeCount.value_or(0)) + " run past the grid's " +
+                                        std::to_string(total));
+  g.firstProbe = o.firstProbe;
+  g.probeCount = o.probeCount ? *o.probeCount : total - o.firstProbe;
+  const size_t n = g.probeCount;
   g.positions.resize(n * 3);
   std::vector<size_t> frameIndex(n);
-  for (int z = 0, i = 0; z < g.layout.resolution[2]; ++z)
-    for (int y = 0; y < g.layout.resolution[1]; ++y)
-      for (int x = 0; x < g.layout.resolution[0]; ++x, ++i) {
-        const auto p = g.layout.probePosition(x, y, z);
-        for (int a = 0; a < 3; ++a) g.positions[3 * i + a] = float(p[a]);
-        frameIndex[i] = size_t(i);
-      }
+  const auto& res = g.layout.resolution;
+  for (size_t i = 0; i < n; ++i) {
+    const size_t q = g.firstProbe + i;  // the probe's index in the grid: its position and its rotation
+    const auto p = g.layout.probePosition(int(q % res[0]), int(q / res[0] % res[1]), int(q / (size_t(res[0]) * res[1])));
+    for (int a = 0; a < 3; ++a) g.positions[3 * i + a] = float(p[a]);
+    frameIndex[i] = q;
+  }
   t = Clock::now();
   tracer.trace(g.positions, frameIndex, o.seed, dirs, stop, g.coeffs, g.backfaceFraction, "probes", g.rays);
   for (float& b : g.backfaceFraction) b = float(b / (4 * kPi));
@@ -388,7 +403,7 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
         }
         if (!within) continue;
         candidates.insert(candidates.end(), p, p + 3);
-        candidateFrame.push_back(i);
+        candidateFrame.push_back(g.firstProbe + i);
         candidateOf.push_back(i);
       }
     std::vector<float> pilotCoeffs, pilotBack;
@@ -404,8 +419,10 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
       moved.insert(moved.end(), &candidates[3 * c], &candidates[3 * c] + 3);
       movedIndex.push_back(i);
     }
+    std::vector<size_t> movedFrame(movedIndex);
+    for (size_t& f : movedFrame) f += g.firstProbe;
     std::vector<float> movedCoeffs, movedBack;
-    tracer.trace(moved, movedIndex, o.seed, dirs, stop, movedCoeffs, movedBack, "probes: relocated", g.rays);
+    tracer.trace(moved, movedFrame, o.seed, dirs, stop, movedCoeffs, movedBack, "probes: relocated", g.rays);
     const size_t nc = size_t(o.order) * o.order * 3;
     for (size_t m = 0; m < movedIndex.size(); ++m) {
       const size_t i = movedIndex[m];
@@ -420,7 +437,7 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
   for (size_t i : inside)
     if (g.state[i] == 0) g.state[i] = 2;
   for (uint8_t s : g.state) g.moved += s == 1, g.invalid += s == 2;
-  g.fillPasses = g.invalid ? fillInvalid(g) : 0;
+  if (g.invalid && g.probeCount == total) g.fillPasses = fillPasses(g);
   g.relocateSeconds = secondsSince(t);
   g.totalSeconds = secondsSince(t0);
   return g;

@@ -1,18 +1,51 @@
 // The probe grid's raw outputs: the .npy of coefficients and the sidecar JSON (see probes.h).
+#include <algorithm>
+
 #include <nlohmann/json.hpp>
 
 #include "io/npy.h"
 #include "prtbake/probes.h"
 #include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
 
 namespace prtbake {
 
 std::string probeGridNpyBytes(const ProbeGridResult& g) {
   npy::checkLittleEndian();
   const auto& r = g.layout.resolution;
+  if (g.coeffs.size() != g.layout.count() * size_t(g.order) * g.order * 3)
+    throw UsageError("probes", "the .npy holds a whole grid (" + std::to_string(g.layout.count()) + " probes)");
   std::string out = npy::header("<f4", {size_t(r[2]), size_t(r[1]), size_t(r[0]), size_t(g.order) * g.order, 3});
   out.append(reinterpret_cast<const char*>(g.coeffs.data()), g.coeffs.size() * sizeof(float));
   return out;
+}
+
+std::string probeRangeNpyBytes(const ProbeGridResult& g) {
+  npy::checkLittleEndian();
+  const size_t n = g.probeCount, nc = size_t(g.order) * g.order * 3, columns = nc + kProbeRangeExtraColumns;
+  std::vector<float> rows(n * columns);
+  for (size_t i = 0; i < n; ++i) {
+    float* r = &rows[i * columns];
+    std::copy(g.probe(i), g.probe(i) + nc, r);
+    std::copy(&g.positions[3 * i], &g.positions[3 * i] + 3, r + nc);
+    r[nc + 3] = float(g.state[i]);
+    r[nc + 4] = g.backfaceFraction[i];
+  }
+  std::string out = npy::header("<f4", {n, columns});
+  out.append(reinterpret_cast<const char*>(rows.data()), rows.size() * sizeof(float));
+  return out;
+}
+
+void appendProbeRange(ProbeGridResult& g, const std::vector<float>& rows, size_t count) {
+  const size_t nc = size_t(g.order) * g.order * 3, columns = nc + kProbeRangeExtraColumns;
+  if (rows.size() != count * columns) throw UsageError("probes", "a probe range's rows do not match its order");
+  for (size_t r = 0; r < count; ++r) {
+    const float* row = &rows[r * columns];
+    g.coeffs.insert(g.coeffs.end(), row, row + nc);
+    g.positions.insert(g.positions.end(), row + nc, row + nc + 3);
+    g.state.push_back(uint8_t(row[nc + 3]));
+    g.backfaceFraction.push_back(row[nc + 4]);
+  }
 }
 
 std::string probeGridSidecarBytes(const std::string& inputPath, const ProbeOptions& o, const ShCoeffs& env,
