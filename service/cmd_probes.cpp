@@ -24,6 +24,7 @@ int runProbes(const CommandLine& cl) {
   const std::string target = cl.getChoice("target", "raw", {"raw", "threejs"});
   nlohmann::json outputs = {{"npy", dir + "/probes.npy"}, {"json", dir + "/probes.json"}};
   if (target == "threejs") outputs["ktx2"] = dir + "/probes.ktx2", outputs["js"] = dir + "/probes.mjs";
+  if (cl.has("preview")) outputs["png"] = dir + "/probes.png";
   const nlohmann::json p = productParams(cl, "probes", outputs);
   const ProbeOptions o = jobs::probeOptionsFrom(p);
 
@@ -47,6 +48,7 @@ int runProbes(const CommandLine& cl) {
     files.emplace_back(dir + "/probes.ktx2", probeGridThreejsKtx2Bytes(g));
     files.emplace_back(dir + "/probes.mjs", probeGridThreejsLoaderBytes(g, "probes.ktx2"));
   }
+  if (cl.has("preview")) files.emplace_back(dir + "/probes.png", jobs::probeGridPreviewPngBytes(mesh, g, rt));
   if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
     throw OutputError(dir, std::string("cannot create the directory: ") + std::strerror(errno));
   std::vector<std::unique_ptr<AtomicFile>> staged;
@@ -65,11 +67,13 @@ int runProbes(const CommandLine& cl) {
 PRTBAKE_COMMAND(Command{
     "probes", "a light probe grid: SH radiance at points in space, for moving objects",
     "prtbake probes SCENE -o DIR [--env SH.json|ENVMAP] [--resolution NX,NY,NZ | --spacing D]\n"
-    "       [--bounds X0,Y0,Z0,X1,Y1,Z1] [--order 2|3] [--samples N] [--bounces B] [--target raw|threejs]\n"
+    "       [--bounds X0,Y0,Z0,X1,Y1,Z1] [--order 2|3] [--samples N] [--bounces B] [--target raw|threejs] [--preview]\n"
     "Writes DIR/probes.npy (float32 [NZ, NY, NX, n^2, 3]) and DIR/probes.json (layout, validity, timings);\n"
-    "--target threejs also DIR/probes.ktx2 (LightProbeGridWebGL's 3D atlas, RGBA16F) and DIR/probes.mjs (its loader).",
+    "--target threejs also DIR/probes.ktx2 (LightProbeGridWebGL's 3D atlas, RGBA16F) and DIR/probes.mjs (its loader);\n"
+    "--preview also DIR/probes.png.",
     productOptions("probes", {{"output", true, "the output directory (-o)"},
-                              {"target", true, "raw (.npy and sidecar, default) | threejs (also the 3D atlas)"}}),
+                              {"target", true, "raw (.npy and sidecar, default) | threejs (also the 3D atlas)"},
+                              {"preview", false, "also DIR/probes.png: the scene lit by the grid, the probes, a slice"}}),
     1, 1, runProbes});
 
 }  // namespace

@@ -1,6 +1,7 @@
 // The "probes" job type (light probe grids, docs/probes.md): its keys are the options of
 // `prtbake probes`, declared once here; the executor bakes the grid and produces the outputs
 // asked for (npy, json; ktx2 and js for three.js).
+#include <algorithm>
 #include <cmath>
 
 #include "jobs.h"
@@ -10,6 +11,7 @@
 #include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
+#include "prtbake/preview.h"
 #include "prtbake/probes.h"
 
 namespace prtbake::jobs {
@@ -69,14 +71,17 @@ ShCoeffs probeEnvironment(const json& p, const std::function<Runtime&()>& runtim
 
 namespace {
 
-// The outputs a probes job asks for, from a whole grid (`outputs`: kind → path).
+// The outputs a probes job asks for, from a whole grid (`outputs`: kind → path; the png needs
+// the scene and the device).
 void writeProbeOutputs(const std::map<std::string, std::string>& outputs, const std::string& input,
-                       const ProbeOptions& o, const ShCoeffs& env, const std::string& envPath, const ProbeGridResult& g) {
+                       const ProbeOptions& o, const ShCoeffs& env, const std::string& envPath, const ProbeGridResult& g,
+                       const Mesh& mesh, Runtime& rt) {
   std::vector<std::pair<std::string, std::string>> files;
   for (const auto& [kind, path] : outputs) {
     if (kind == "npy") files.emplace_back(path, probeGridNpyBytes(g));
     if (kind == "json") files.emplace_back(path, probeGridSidecarBytes(input, o, env, envPath, g));
     if (kind == "ktx2") files.emplace_back(path, probeGridThreejsKtx2Bytes(g));
+    if (kind == "png") files.emplace_back(path, probeGridPreviewPngBytes(mesh, g, rt));
     if (kind == "js") {  // the loader names the atlas by its file name, beside it
       const std::string atlas = outputs.at("ktx2");
       files.emplace_back(path, probeGridThreejsLoaderBytes(g, atlas.substr(atlas.find_last_of('/') + 1)));
@@ -103,7 +108,7 @@ ExecResult runProbes(const Job& job, ExecContext& ctx) {
   std::vector<std::string> read = mesh.inputFiles;
   const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
   const ProbeGridResult g = computeProbeGrid(ctx.runtime(), mesh, env, o);
-  writeProbeOutputs(ctx.outputPaths, job.input, o, env, envPathOf(p), g);
+  writeProbeOutputs(ctx.outputPaths, job.input, o, env, envPathOf(p), g, mesh, ctx.runtime());
   ExecResult result;
   result.inputFiles = filesRead(job, read);
   result.report = probeReport(g);
@@ -138,6 +143,26 @@ ExecResult runProbesPart(const Job& job, ExecContext& ctx) {
 }
 
 }  // namespace
+
+std::string probeGridPreviewPngBytes(const Mesh& mesh, const ProbeGridResult& g, Runtime& rt) {
+  MeshPreviewOptions view;
+  view.yawDeg = 30, view.pitchDeg = 25;
+  view.width = 640, view.height = 480;
+  const LinearImage image = renderProbeGridPreview(rt, mesh, g, view);
+  // Exposure: the 95th percentile of the pixels' largest channel at 0.8 (a sky with a sun lights
+  // the scene far above 1).
+  std::vector<float> peak(image.rgb.size() / 3);
+  for (size_t i = 0; i < peak.size(); ++i)
+    peak[i] = std::max({image.rgb[3 * i], image.rgb[3 * i + 1], image.rgb[3 * i + 2]});
+  std::nth_element(peak.begin(), peak.begin() + ptrdiff_t(peak.size() * 95 / 100), peak.end());
+  const float p95 = peak[peak.size() * 95 / 100];
+  ToneMap tone;
+  tone.exposureStops = p95 > 0 ? std::log2(0.8 / p95) : 0.0;
+  return previewPngBytes(image, tone,
+                         {{"Description", "prtbake probe grid preview: the scene lit by the grid (E/pi at each vertex "
+                                          "half a cell out along its normal), a sphere per probe shaded by it (red: "
+                                          "invalid, filled), and the grid's horizontal slice at mid-height (E/pi, up)"}});
+}
 
 const JobType& probesPartialType() {
   static const JobType type = [] {
@@ -192,7 +217,7 @@ std::vector<std::string> mergeProbesSplit(const Job& job, int n, const std::vect
   std::map<std::string, std::string> outputs;
   for (const auto& out : job.outputs) outputs[out.kind] = out.path;
   removeOldManifest(job);
-  writeProbeOutputs(outputs, job.input, o, env, envPathOf(p), g);
+  writeProbeOutputs(outputs, job.input, o, env, envPathOf(p), g, mesh, processRuntime(""));
   writeMergedManifest(job, manifests[0], g.device, seconds, probeReport(g));
   *info = {{"probes", total}};
   return {};
@@ -202,7 +227,7 @@ JobType probesJobType() {
   JobType t;
   t.name = "probes";
   t.input = InputKind::File;
-  t.outputKinds = {"npy", "json", "ktx2", "js"};
+  t.outputKinds = {"npy", "json", "ktx2", "js", "png"};
   t.keys = {{"resolution", ValueKind::NumberList, nullptr, 1, kMaxProbesPerAxis, {},
              "probes along x, y and z (3 integers; none: from spacing)"},
             number("spacing", nullptr, 1e-6, 1e9, "the probes' spacing: NX = round(size_x / spacing), ... (none: 1/8 of the largest side)"),

@@ -103,6 +103,8 @@ JobType glossyJobType();
 // or none: constant white), the files read appended to *files.
 JobType probesJobType();
 const JobType& probesPartialType();
+// The probes job's png output (and prtbake probes --preview): renderProbeGridPreview's PNG.
+std::string probeGridPreviewPngBytes(const Mesh& mesh, const ProbeGridResult& grid, Runtime& rt);
 std::vector<std::string> mergeProbesSplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
 ProbeOptions probeOptionsFrom(const json& params);
 ShCoeffs probeEnvironment(const json& params, const std::function<Runtime&()>& runtime, std::vector<std::string>* files);

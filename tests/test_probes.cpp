@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "prtbake/error.h"
+#include "prtbake/preview.h"
 #include "prtbake/probes.h"
 #include "prtbake/sh.h"
 #include "test_common.h"
@@ -398,4 +399,36 @@ TEST_CASE("A split probes job: shards then merge give the whole run's bytes", "[
   CHECK(sidecar["validity"]["invalid_probes"] == wholeSidecar["validity"]["invalid_probes"]);
   CHECK(wholeSidecar["validity"]["moved"].get<int>() > 0);
   CHECK(wholeSidecar["validity"]["invalid"].get<int>() > 0);
+}
+
+TEST_CASE("Probes: the preview's slice runs x to the right and z downwards", "[probes][preview]") {
+  // A roof (a square facing down, at y = 0.9) over the quarter x > 0, z > 0 of a floorless box of
+  // probes (y 0 to 1, the slice at 0.5) under
+  // the white sky: the slice's bottom-right quarter is the darkest, its top-left the brightest.
+  Mesh roof;
+  std::array<double, 3> q[4] = {{0, 0.9, 0}, {0, 0.9, 1.2}, {1.2, 0.9, 1.2}, {1.2, 0.9, 0}};  // front face down
+  addQuad(roof, q);
+  ProbeOptions o;
+  o.resolution = std::array<int, 3>{8, 2, 8};
+  o.boundsMin = std::array<double, 3>{-1, 0, -1};
+  o.boundsMax = std::array<double, 3>{1, 1, 1};
+  o.bounces = 0;
+  o.samples = 128;
+  const ProbeGridResult g = computeProbeGrid(test::runtime(), roof, white(), o);
+  MeshPreviewOptions view;
+  view.width = 160, view.height = 120;
+  const LinearImage img = renderProbeGridPreview(test::runtime(), roof, g, view);
+  REQUIRE(img.height == 120);
+  REQUIRE(img.width == 160 + 120);  // the slice is as tall as the scene panel, square like the box
+  auto mean = [&](int x0, int y0) {  // a 20 × 20 block of the slice, its x0, y0 in slice pixels
+    double s = 0;
+    for (int y = y0; y < y0 + 20; ++y)
+      for (int x = x0; x < x0 + 20; ++x) s += img.at(160 + x, y)[0];
+    return s / 400;
+  };
+  const double topLeft = mean(10, 10), bottomRight = mean(90, 90), topRight = mean(90, 10), bottomLeft = mean(10, 90);
+  INFO("slice quarters: " << topLeft << " " << topRight << " / " << bottomLeft << " " << bottomRight);
+  CHECK(bottomRight < 0.8 * topLeft);
+  CHECK(bottomRight < topRight);
+  CHECK(bottomRight < bottomLeft);
 }

@@ -17,6 +17,7 @@
 #include "prtbake/lut.h"
 #include "prtbake/mesh.h"
 #include "prtbake/prefilter.h"
+#include "prtbake/probes.h"
 #include "prtbake/runtime.h"
 #include "prtbake/transport.h"
 
@@ -57,6 +58,9 @@ struct ToneMap {
 // Writes the PNG atomically; `text` adds tEXt chunks (key, value).
 void writePreviewPng(const std::string& path, const LinearImage& image, const ToneMap& toneMap,
                      const std::vector<std::pair<std::string, std::string>>& text = {});
+// The PNG's bytes (for a caller that writes several outputs together).
+std::string previewPngBytes(const LinearImage& image, const ToneMap& toneMap,
+                            const std::vector<std::pair<std::string, std::string>>& text = {});
 
 // --- mesh preview: the mesh lit by the baked transport, as a real-time engine shades it ---
 //
@@ -104,6 +108,18 @@ struct MeshPreviewResult {
 // radiance, UsageError for bad options.
 MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const TransportCoeffs& transport,
                                     const ShCoeffs& radiance, const MeshPreviewOptions& options);
+
+// --- probe grid preview ---
+//
+// Two panels side by side: the scene seen by `view`'s camera, each vertex shaded ρ E/π with E/π
+// from the grid at the vertex moved half a cell along its normal (probeGridIrradianceOverPi, as
+// three.js's shader samples the grid; interpolated over the triangles), and a sphere at every
+// probe's position (moved probes where they were baked; every k-th probe along each axis when
+// there are more than maxSpheres), white and shaded by that probe's own coefficients, red where
+// the probe is invalid (filled from its neighbours); then the horizontal slice through the grid's
+// middle height, x to the right and z downwards, shaded with E/π for an upward normal.
+LinearImage renderProbeGridPreview(Runtime& rt, const Mesh& scene, const ProbeGridResult& grid,
+                                   const MeshPreviewOptions& view, int maxSpheres = 4096);
 
 // --- prefiltered chain preview ---
 //

@@ -143,6 +143,12 @@ LinearImage renderLutPreview(int size, const std::vector<LutChannel>& channels, 
 void writePreviewPng(const std::string& path, const LinearImage& image, const ToneMap& toneMap,
                      const std::vector<std::pair<std::string, std::string>>& text) {
   if (image.width <= 0 || image.height <= 0) throw OutputError(path, "empty image");
+  writeFileAtomic(path, previewPngBytes(image, toneMap, text));
+}
+
+std::string previewPngBytes(const LinearImage& image, const ToneMap& toneMap,
+                            const std::vector<std::pair<std::string, std::string>>& text) {
+  if (image.width <= 0 || image.height <= 0) throw OutputError("preview", "empty image");
   const double scale = std::pow(2.0, toneMap.exposureStops);
   std::vector<unsigned char> px(image.rgb.size());
   for (size_t i = 0; i < px.size(); ++i) {
@@ -152,7 +158,7 @@ void writePreviewPng(const std::string& path, const LinearImage& image, const To
   }
   std::string png;
   if (!stbi_write_png_to_func(collect, &png, image.width, image.height, 3, px.data(), image.width * 3))
-    throw OutputError(path, "PNG encoding failed");
+    throw OutputError("preview", "PNG encoding failed");
   // Insert tEXt chunks right after IHDR (8-byte signature + 25-byte IHDR chunk).
   std::vector<std::pair<std::string, std::string>> all = {
       {"Software", std::string("prtbake ") + version()},
@@ -161,7 +167,7 @@ void writePreviewPng(const std::string& path, const LinearImage& image, const To
   std::string chunks;
   for (const auto& [k, v] : all) detail::appendPngChunk(chunks, "tEXt", k.substr(0, 79) + std::string(1, '\0') + v);
   png.insert(33, chunks);
-  writeFileAtomic(path, png);
+  return png;
 }
 
 }  // namespace prtbake
