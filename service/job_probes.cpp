@@ -30,6 +30,8 @@ ProbeOptions probeOptionsFrom(const json& p) {
   }
   o.order = p["order"].get<int>();
   o.samples = p["samples"].get<int>();
+  if (!p["tolerance"].is_null()) o.tolerance = p["tolerance"].get<double>();
+  o.toleranceMaxSamples = p["max_samples"].get<int>();
   o.seed = p["seed"].get<uint64_t>();
   o.bounces = p["bounces"].get<int>();
   o.transportSamples = p["transport_samples"].get<int>();
@@ -235,6 +237,10 @@ JobType probesJobType() {
              "the grid's box: min x, y, z then max x, y, z (none: the scene's bounding box)"},
             integer("order", 3, 2, 3, "SH order of the probes: 2 (L1, 4 coefficients) or 3 (L2, 9)"),
             integer("samples", 256, 1, 65536, "rays per probe"),
+            number("tolerance", nullptr, 1e-6, 1.0,
+                   "the rays per probe that bring 95 % of the probes' coefficients within this fraction of the "
+                   "environment's l_0, predicted from a pilot (docs/probes.md); excludes samples"),
+            integer("max_samples", 65536, 64, 65536, "with tolerance: the most rays per probe"),
             integer("bounces", 1, 0, 16, "light bounced off the surfaces (0: surfaces black; B: B - 1 interreflections)"),
             integer("transport_samples", 256, 1, 1 << 20, "rays per vertex of the surfaces' transport (bounces >= 1)"),
             integer("seed", 0, 0, 4294967295.0, "the probes' quadrature rotations"),
@@ -253,6 +259,10 @@ JobType probesJobType() {
         if (v.get<double>() != std::floor(v.get<double>())) problems.push_back({"resolution", "expected integers"});
     if (raw.contains("bounds") && p["bounds"].size() != 6)
       problems.push_back({"bounds", "expected 6 numbers (min x, y, z, max x, y, z)"});
+    if (raw.contains("tolerance") && raw.contains("samples"))
+      problems.push_back({"tolerance", "cannot be combined with samples (give one or the other)"});
+    if (raw.contains("max_samples") && !raw.contains("tolerance"))
+      problems.push_back({"max_samples", "only applies with tolerance"});
     if (raw.contains("resolution") && raw.contains("spacing"))
       problems.push_back({"spacing", "cannot be combined with resolution"});
     if (raw.contains("env_order") && (!raw.contains("env") || (p["env"].is_string() &&

@@ -33,6 +33,7 @@
 #include "prtbake/mesh.h"
 #include "prtbake/runtime.h"
 #include "prtbake/sh.h"
+#include "prtbake/tolerance.h"
 
 namespace prtbake {
 
@@ -55,6 +56,12 @@ struct ProbeOptions {
   std::optional<std::array<double, 3>> boundsMin, boundsMax;
   int order = 3;              // 2 (L1, 4 coefficients) or 3 (L2, 9)
   int samples = 256;          // rays per probe (rounded to the quadrature's rings × segments)
+  // "--tolerance E" (0: off, `samples` is used): the count that brings 95 % of the probes'
+  // coefficients within E × the environment's l_0 (its mean over the channels), predicted from a
+  // pilot over at most 128 probes spread through the grid (prtbake/tolerance.h), capped at
+  // toleranceMaxSamples.
+  double tolerance = 0;
+  int toleranceMaxSamples = 65536;
   uint64_t seed = 0;
   int bounces = 1;            // 0: surfaces are black; B ≥ 1: lit with B − 1 interreflections
   int transportSamples = 256; // rays per vertex of the surfaces' transport (bounces ≥ 1)
@@ -94,6 +101,7 @@ struct ProbeGridResult {
   int environmentOrder = 0;
   double bvhSeconds = 0, surfaceSeconds = 0, traceSeconds = 0, relocateSeconds = 0, totalSeconds = 0;
   std::string device;
+  std::vector<ToleranceReport> tolerance;  // with --tolerance: what the pilot found (one entry)
 
   const float* probe(size_t index) const { return coeffs.data() + index * size_t(order) * order * 3; }
 };

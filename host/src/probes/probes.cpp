@@ -10,6 +10,7 @@
 #include "core/constants.h"
 #include "core/gauss_legendre.h"
 #include "core/kernel_options.h"
+#include "core/tolerance_pilot.h"
 #include "prtbake/bvh.h"
 #include "prtbake/clock.h"
 #include "prtbake/error.h"
@@ -75,6 +76,9 @@ std::vector<float> quadrature(int rings, int segments) {
 void checkOptions(const ProbeOptions& o) {
   if (o.order != 2 && o.order != 3) throw UsageError("--order", "probes take order 2 (L1) or 3 (L2), got " + std::to_string(o.order));
   if (o.samples < 1 || o.samples > 65536) throw UsageError("--samples", "expected 1..65536 rays per probe");
+  if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance)) throw UsageError("--tolerance", "must be a finite number >= 0");
+  if (o.tolerance > 0 && (o.toleranceMaxSamples < 64 || o.toleranceMaxSamples > 65536))
+    throw UsageError("--max-samples", "expected 64..65536");
   if (o.bounces < 0 || o.bounces > 16) throw UsageError("--bounces", "expected 0..16");
   if (o.transportSamples < 1 || o.transportSamples > (1 << 20)) throw UsageError("--transport-samples", "expected 1..1048576");
   if (!(o.backfaceLimit > 0 && o.backfaceLimit <= 1)) throw UsageError("--backface-limit", "expected a fraction in (0, 1]");
@@ -270,6 +274,46 @@ int fillPasses(ProbeGridResult& g) {
   }
 }
 
+// "--tolerance": the pilot over at most 128 probes spread through the grid (prtbake/tolerance.h),
+// their coefficients in units of the environment's l_0; probes inside geometry count as exact
+// (their values are not used: they are relocated or filled).
+template <typename Rule>
+int toleranceSamples(ProbeTracer& tracer, const ProbeGridLayout& layout, const ProbeOptions& o, const ShCoeffs& env,
+                     float stop, const Rule& rule, ProbeGridResult& g) {
+  const auto t0 = Clock::now();
+  const size_t total = layout.count();
+  const std::vector<size_t> pilot = detail::pilotSubset(total, (total + kTolerancePilotVertices - 1) / kTolerancePilotVertices);
+  std::vector<float> positions;
+  for (size_t q : pilot) {
+    const auto& r = layout.resolution;
+    const auto p = layout.probePosition(int(q % r[0]), int(q / r[0] % r[1]), int(q / (size_t(r[0]) * r[1])));
+    positions.insert(positions.end(), {float(p[0]), float(p[1]), float(p[2])});
+  }
+  const double scale = std::max(1e-30, (std::abs(env.rgb[0][0]) + std::abs(env.rgb[0][1]) + std::abs(env.rgb[0][2])) / 3);
+  const size_t stride = size_t(o.order) * o.order * 3;
+  auto evaluate = [&](const std::vector<int>& counts) {
+    std::vector<std::vector<double>> out;
+    for (int n : counts) {
+      int rings = 0, segments = 0;
+      std::vector<float> coeffs, back;
+      tracer.trace(positions, pilot, o.seed, rule(n, &rings, &segments), stop, coeffs, back, "probes: tolerance pilot",
+                   g.rays);
+      std::vector<double> v(coeffs.size());
+      for (size_t i = 0; i < pilot.size(); ++i)
+        for (size_t k = 0; k < stride; ++k)
+          v[i * stride + k] = back[i] > stop ? 0.0 : coeffs[i * stride + k] / scale;
+      out.push_back(std::move(v));
+    }
+    return out;
+  };
+  ToleranceReport report = detail::runTolerancePilot(evaluate, stride, o.tolerance, o.toleranceMaxSamples, 16);
+  report.pilotItems = pilot.size();
+  report.items = total;
+  report.pilotSeconds = secondsSince(t0);
+  g.tolerance = {report};
+  return report.samples;
+}
+
 }  // namespace
 
 int fillInvalidProbes(ProbeGridResult& g) {
@@ -350,16 +394,21 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
                                           : std::vector<float>();
   g.surfaceSeconds = secondsSince(t);
 
-  // The quadrature: exact for the products of the probe's and the environment's SH.
+  // The quadrature of N directions: exact for the products of the probe's and the environment's SH.
   const int degree = (o.order - 1) + (envOrder - 1);
-  g.rings = std::max((degree + 2) / 2, int(std::lround(std::sqrt(o.samples / 2.0))));
-  g.segments = std::max(degree + 1, int(std::lround(double(o.samples) / g.rings)));
-  g.samples = g.rings * g.segments;
-  const std::vector<float> dirs = quadrature(g.rings, g.segments);
+  auto rule = [&](int samples, int* rings, int* segments) {
+    *rings = std::max((degree + 2) / 2, int(std::lround(std::sqrt(samples / 2.0))));
+    *segments = std::max(degree + 1, int(std::lround(double(samples) / *rings)));
+    return quadrature(*rings, *segments);
+  };
 
   ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, o.packetWidth);
   // A probe inside geometry (back faces over the limit) is relocated or filled: its trace may stop.
   const float stop = float(o.backfaceLimit * 4 * kPi);
+  int samples = o.samples;
+  if (o.tolerance > 0) samples = toleranceSamples(tracer, g.layout, o, environment, stop, rule, g);
+  const std::vector<float> dirs = rule(samples, &g.rings, &g.segments);
+  g.samples = g.rings * g.segments;
   const size_t total = g.layout.count();
   if (o.firstProbe > total || (o.probeCount && *o.probeCount > total - o.firstProbe))
     throw UsageError("probe range", "probes " + std::to_string(o.firstProbe) + " + " +

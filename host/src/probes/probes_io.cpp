@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/tolerance_pilot.h"
 #include "io/npy.h"
 #include "prtbake/probes.h"
 #include "prtbake/atomic_file.h"
@@ -97,6 +98,14 @@ std::string probeGridSidecarBytes(const std::string& inputPath, const ProbeOptio
                    {"invalid_probes", invalid},
                    {"meaning", "moved: baked at 'position' instead of its grid point; invalid: no free point within "
                                "reach, filled with the mean of its valid face neighbours"}};
+  if (o.tolerance > 0) {
+    j["parameters"]["tolerance"] = o.tolerance;
+    j["parameters"]["max_samples"] = o.toleranceMaxSamples;
+  }
+  if (!g.tolerance.empty())
+    j["tolerance"] = {{"pilot", detail::toleranceJson(g.tolerance.front())},
+                      {"meaning", "the rays per probe predicted to bring 95 % of the probes' coefficients within the "
+                                  "tolerance times the environment's l_0 (docs/probes.md)"}};
   j["samples"] = {{"per_probe", g.samples}, {"rings", g.rings}, {"segments", g.segments}, {"rays", g.rays},
                   {"quadrature", "Gauss-Legendre in cos(theta) x uniform phi, a random rotation per probe"}};
   j["timings_seconds"] = {{"bvh", g.bvhSeconds}, {"surfaces", g.surfaceSeconds}, {"trace", g.traceSeconds},
