@@ -70,12 +70,9 @@ __kernel void probes_trace(int probeCount, int sampleCount, __global const float
       back += dl.w;
       continue;
     } else if (lit) {
-      u = fmax(u, 0.0f);
-      v = fmax(v, 0.0f);
-      float w = fmax(1.0f - u - v, 0.0f);
-      const float sum = u + v + w;
+      const float3 bw = bvh_hit_weights(u, v);
       const int4 idx = indices[tri];
-      L = (radiance[idx.x].xyz * w + radiance[idx.y].xyz * u + radiance[idx.z].xyz * v) / sum;
+      L = radiance[idx.x].xyz * bw.x + radiance[idx.y].xyz * bw.y + radiance[idx.z].xyz * bw.z;
     }
     L *= dl.w;
     for (int k = 0; k < PROBE_COUNT; ++k) acc[k] += y[k] * L;
@@ -139,10 +136,9 @@ __kernel void probes_trace_packet(int probeCount, int sampleCount, __global cons
           continue;
         }
         if (!lit) continue;
-        float u = fmax(((float*)&hitU)[j], 0.0f), v = fmax(((float*)&hitV)[j], 0.0f);
-        const float c = fmax(1.0f - u - v, 0.0f), sum = u + v + c;
+        const float3 bw = bvh_hit_weights(((float*)&hitU)[j], ((float*)&hitV)[j]);
         const int4 idx = indices[tri];
-        const float3 L = (radiance[idx.x].xyz * c + radiance[idx.y].xyz * u + radiance[idx.z].xyz * v) / sum;
+        const float3 L = radiance[idx.x].xyz * bw.x + radiance[idx.y].xyz * bw.y + radiance[idx.z].xyz * bw.z;
         ((float*)&r)[j] = L.x, ((float*)&g)[j] = L.y, ((float*)&bl)[j] = L.z;
       }
     }

@@ -51,11 +51,9 @@
 inline void bounce_gather(int tri, float u, float v, __global const int4* indices, __global const float4* albedo,
                           __global const float* prev, float* acc) {
   if (tri < 0) return;
-  u = fmax(u, 0.0f);
-  v = fmax(v, 0.0f);
-  float w = fmax(1.0f - u - v, 0.0f);
-  const float sum = u + v + w;
-  u /= sum, v /= sum, w /= sum;
+  const float3 bw = bvh_hit_weights(u, v);
+  const float w = bw.x;
+  u = bw.y, v = bw.z;
   const int4 idx = indices[tri];
   const float4 rho = albedo[idx.x] * w + albedo[idx.y] * u + albedo[idx.z] * v;
   __global const float* t0 = prev + (size_t)idx.x * CHANNELS * SH_COUNT;

@@ -13,6 +13,7 @@
 #include "prtbake/preview.h"
 #include "prtbake/probes.h"
 #include "prtbake/sh.h"
+#include "job_test_helpers.h"
 #include "test_common.h"
 
 using namespace prtbake;
@@ -322,10 +323,7 @@ TEST_CASE("prtbake probes: bad grids get one line and no output, and a job write
   const test::CliResult run = test::runCli("run '" + dir + "/job.json' --quiet");
   INFO(run.output);
   REQUIRE(run.exitCode == 0);
-  auto bytes = [](const std::string& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  };
+  const auto bytes = [](const std::string& p) { return test::readText(p); };
   const std::string a = bytes(dir + "/cli/probes.npy"), b = bytes(dir + "/job/probes.npy");
   CHECK(a.size() == 128 + 32 * 9 * 3 * 4);
   CHECK(a == b);
@@ -385,10 +383,7 @@ TEST_CASE("A split probes job: shards then merge give the whole run's bytes", "[
   const auto m = test::runCli("merge '" + dir + "/jobs.json' --shards 3");
   INFO(m.output);
   REQUIRE(m.exitCode == 0);
-  auto bytes = [](const std::string& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  };
+  const auto bytes = [](const std::string& p) { return test::readText(p); };
   const std::string whole = bytes(dir + "/w/probes.npy");
   REQUIRE(whole.size() == 128 + 90 * 27 * 4);
   CHECK(bytes(dir + "/s/probes.npy") == whole);

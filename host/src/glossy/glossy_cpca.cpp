@@ -21,6 +21,7 @@
 #include <cstring>
 #include <thread>
 
+#include "core/radical_inverse.h"
 #include "core/parallel.h"
 #include "prtbake/clock.h"
 #include "prtbake/error.h"
@@ -120,12 +121,7 @@ void axpy(const float* a, size_t nr, const float* x, size_t dim, float* z) {
   else axpyGeneric(a, nr, x, dim, z);
 }
 
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
+using detail::splitmix64;
 
 struct Model {
   size_t K = 0, P = 0, D = 0;

@@ -10,6 +10,7 @@
 #include "core/constants.h"
 #include "core/gauss_legendre.h"
 #include "core/kernel_options.h"
+#include "core/radical_inverse.h"
 #include "core/tolerance_pilot.h"
 #include "prtbake/bvh.h"
 #include "prtbake/clock.h"
@@ -30,13 +31,8 @@ constexpr int kPilotRings = 6, kPilotSegments = 12;
 // The environment orders the kernel evaluates (the transport's too).
 constexpr int kMaxEnvOrder = kMaxTransportOrder;
 
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-double unitFromBits(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }
+using detail::splitmix64;
+using detail::unitFromBits;
 
 // A uniformly random rotation per probe (Shoemake's quaternion from three uniforms), as the
 // three float4 columns that sampling_to_world reads.

@@ -14,13 +14,8 @@
 namespace prtbake {
 namespace {
 
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-double unitFromBits(uint64_t h) { return double(h >> 11) * 0x1.0p-53; }
+using detail::splitmix64;
+using detail::unitFromBits;
 
 // Orders a direction set along a Morton curve over the projected disk (x, y), so that
 // consecutive samples (the packets of the vector kernel) point in nearby directions.
