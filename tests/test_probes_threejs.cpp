@@ -249,30 +249,16 @@ namespace {
 // spheres (__SPHERES__: [x, y, z], radius __RADIUS__), no other light, and renders them from +Z with
 // an orthographic camera into a float target (linear: no tone map, no output encoding), cleared to
 // alpha 0. Result: per shot, [pixel index, r, g, b, …] of the pixels the spheres covered (alpha > 0),
-// bottom row first. three's FileLoader fetches the KTX2; Chromium's fetch refuses file:// URLs, so
-// those are read with XMLHttpRequest (allowed by --allow-file-access-from-files), as in
-// js/gltf_viewer_render.html.
+// bottom row first. three's FileLoader fetches the KTX2 from a file:// URL: js/file_fetch.js reads
+// it (Chromium's fetch refuses such URLs).
 const char* kProbePage = R"(<!doctype html><html><head>
 <script type="importmap">{"imports": {"three": "__THREE__/build/three.module.js", "three/addons/": "__THREE__/examples/jsm/"}}</script>
 </head><body><canvas id="c" width="__W__" height="__H__"></canvas>
+<script src="__JS__/file_fetch.js"></script>
 <script type="module">
 import * as THREE from 'three';
 let settle;
 window.result = new Promise((resolve) => { settle = resolve; });
-const readBytes = (url) => new Promise((resolve, reject) => {
-  const x = new XMLHttpRequest();
-  x.open('GET', url);
-  x.responseType = 'arraybuffer';
-  x.onload = () => resolve(new Uint8Array(x.response));
-  x.onerror = () => reject(new Error('cannot read ' + url));
-  x.send();
-});
-const browserFetch = window.fetch;
-window.fetch = (input, init) => {
-  const url = String(input instanceof Request ? input.url : input);
-  if (!url.startsWith('file:')) return browserFetch(input, init);
-  return readBytes(url).then((b) => new Response(b));
-};
 try {
   const W = __W__, H = __H__;
   const renderer = new THREE.WebGLRenderer({ canvas: document.getElementById('c') });
@@ -333,6 +319,7 @@ static void compareWithThree(const std::string& chromium, const std::string& dir
   }
   const std::string page = dir + "/probes.html";
   std::ofstream(page) << test::fillPage(kProbePage, {{"__THREE__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/three"},
+                                                     {"__JS__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js"},
                                                      {"__W__", std::to_string(W)},
                                                      {"__H__", std::to_string(H)},
                                                      {"__LEFT__", json(left).dump()},
