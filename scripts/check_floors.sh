@@ -15,7 +15,7 @@ public_folder() {
     mesh|bvh) echo geometry ;;
     env|env_sh) echo env ;;
     engine|ibl) echo ibl ;;
-    lut|prefilter|transport|glossy|preview|probes) echo "$1" ;;
+    lut|prefilter|transport|glossy|preview|probes|lightmap) echo "$1" ;;
     *) echo "?" ;;
   esac
 }
@@ -23,7 +23,7 @@ floor() {
   case "$1" in
     core) echo 0 ;; io) echo 1 ;; geometry) echo 2 ;;
     env|lut|prefilter|transport|glossy) echo 3 ;;
-    ibl|preview|probes) echo 4 ;; service) echo 5 ;; python) echo 6 ;; kernels) echo 0 ;;
+    ibl|preview|probes|lightmap) echo 4 ;; service) echo 5 ;; python) echo 6 ;; kernels) echo 0 ;;
     *) echo 99 ;;
   esac
 }
@@ -39,7 +39,7 @@ folder_of_file() {  # a source file's folder
 folder_of_include() {  # a quoted include's folder, or "" for one outside the library
   case "$1" in
     prtbake/*) public_folder "$(basename "$1" .h)" ;;
-    core/*|io/*|geometry/*|env/*|lut/*|prefilter/*|transport/*|glossy/*|preview/*|ibl/*|probes/*) echo "${1%%/*}" ;;
+    core/*|io/*|geometry/*|env/*|lut/*|prefilter/*|transport/*|glossy/*|preview/*|ibl/*|probes/*|lightmap/*) echo "${1%%/*}" ;;
     *.clh|bvh_types.h) echo kernels ;;
     *) echo "" ;;
   esac

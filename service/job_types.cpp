@@ -558,7 +558,7 @@ JobType iblType() {
 }
 
 std::vector<JobType> makeJobTypes() {
-  return {envType(), transportType(), lutType(), glossyJobType(), prefilterType(), iblType(), probesJobType()};
+  return {envType(), transportType(), lutType(), glossyJobType(), prefilterType(), iblType(), probesJobType(), lightmapJobType()};
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 #include "prtbake/ibl.h"
 #include "prtbake/lut.h"
 #include "prtbake/prefilter.h"
+#include "prtbake/lightmap.h"
 #include "prtbake/probes.h"
 #include "prtbake/transport.h"
 
@@ -109,6 +110,17 @@ std::vector<std::string> mergeProbesSplit(const Job& job, int shards, const std:
 ProbeOptions probeOptionsFrom(const json& params);
 ShCoeffs probeEnvironment(const json& params, const std::function<Runtime&()>& runtime, std::vector<std::string>* files);
 const JobType& glossyPartialType();
+
+// The lightmap job (job_lightmap.cpp): its type, the library's options from its parameters, and
+// the bytes of the outputs named in `outputs` (kind → path; kinds <product>_exr, <product>_ktx2,
+// ao_png, gltf: the input's copy with the AO as occlusionTexture, json). Its lighting is the probes' key env (probeEnvironment).
+JobType lightmapJobType();
+LightmapOptions lightmapOptionsFrom(const json& params);
+std::vector<std::pair<std::string, std::string>> lightmapOutputBytes(const std::map<std::string, std::string>& outputs,
+                                                                     const std::string& input, const Mesh& mesh,
+                                                                     const json& params, const LightmapOptions& options,
+                                                                     const LightmapResult& lightmap);
+json lightmapReport(const LightmapResult& lightmap);
 std::vector<std::string> mergeGlossySplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
 
 // The parameters of `type` from command-line texts (key → text, flags ""): each value read

@@ -63,7 +63,7 @@ TEST_CASE("run: every validation problem is named with job, key and file", "[job
   CHECK_THAT(r.output, Catch::Contains(p + "'dup': id: duplicate id: job #7 repeats the id of job #6"));
   CHECK_THAT(r.output, Catch::Contains(p + "'same': outputs.json: " + dir + "/f.json is also written by job 'dup' (outputs.json)"));
   CHECK_THAT(r.output, Catch::Contains(p + "'kind': outputs.exr: not an output of env jobs (expected json, games202, png)"));
-  CHECK_THAT(r.output, Catch::Contains(p + "'badtype': type: unknown job type 'lutt' (expected env|transport|lut|glossy|prefilter|ibl|probes); did you mean 'lut'?"));
+  CHECK_THAT(r.output, Catch::Contains(p + "'badtype': type: unknown job type 'lutt' (expected env|transport|lut|glossy|prefilter|ibl|probes|lightmap); did you mean 'lut'?"));
   CHECK_THAT(r.output, Catch::Contains(p + "'#11': id: missing"));
   CHECK_THAT(r.output, Catch::Contains(p + "'lutinput': input: lut jobs take no input"));
   CHECK_THAT(r.output, Catch::Contains(p + "'lutinput': size: 0 is out of range [1, 8192]"));

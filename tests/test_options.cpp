@@ -197,7 +197,7 @@ TEST_CASE("Every command lists every key of its product as an option", "[options
   const std::map<std::string, std::string> command = {{"env", "env"},     {"transport", "transport"},
                                                       {"glossy", "transport"}, {"lut", "lut"},
                                                       {"prefilter", "prefilter"}, {"ibl", "ibl"},
-                                                      {"probes", "probes"}};
+                                                      {"probes", "probes"}, {"lightmap", "lightmap"}};
   for (const auto& t : jobs::jobTypes()) {
     const CliResult help = runCli(command.at(t.name) + " --help");
     REQUIRE(help.exitCode == 0);

@@ -22,6 +22,10 @@ struct ExrWriteOptions {
 void writeExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
               const ExrWriteOptions& options = {});
 
+// The same file's bytes, for a caller that commits several outputs together.
+std::string exrBytes(int width, int height, const std::vector<ExrChannel>& channels,
+                     const ExrWriteOptions& options = {});
+
 struct ExrImage {
   int width = 0, height = 0;
   std::vector<std::string> channelNames;     // in the file's (alphabetical) order

@@ -17,6 +17,12 @@ struct Mesh {
   std::vector<float> normals;    // 3 per vertex, unit (zero: no normal; transport is zero there)
   std::vector<float> albedo;     // 3 per vertex, linear RGB in [0, 1]
   std::vector<uint32_t> indices; // 3 per triangle, counter-clockwise front faces
+  // Texture coordinate sets: uvs[k] holds 2 floats per vertex (glTF TEXCOORD_k; OBJ's vt is
+  // set 0), in glTF's convention: (0, 0) is the image's top-left corner, v grows downwards
+  // (OBJ's v, which grows upwards, is stored as 1 − v). A set that some triangles lack is
+  // empty, and uvMissing[k] names the first primitive (or OBJ face) without it.
+  std::vector<std::vector<float>> uvs;
+  std::vector<std::string> uvMissing;
 
   // Where each glTF primitive instance's vertices live in this mesh (for the glTF
   // export): vertices [firstVertex, firstVertex + vertexCount) are the primitive's
@@ -33,6 +39,7 @@ struct Mesh {
 
   size_t vertexCount() const { return positions.size() / 3; }
   size_t triangleCount() const { return indices.size() / 3; }
+  bool hasUvSet(int k) const { return k >= 0 && size_t(k) < uvs.size() && !uvs[size_t(k)].empty(); }
   // True when every vertex has r = g = b (the transport stays scalar).
   bool greyAlbedo() const;
   // SHA-256 (hex) of the file `path`: the loader's hash when `path` is the source it parsed
@@ -72,7 +79,7 @@ void meshBounds(const Mesh& mesh, double bmin[3], double bmax[3]);
 // included, radial normals, shared vertices (closed and convex).
 Mesh makeUvSphere(double radius, int rings, int segments);
 // An axis-aligned square [−h, h]² in the plane z = height, normal ±z (down = true: −z),
-// split into n × n quads.
+// split into n × n quads; UV set 0 maps it onto [0, 1]² (u along x, v along −y).
 Mesh makeSquare(double halfSize, double height, int n, bool facingDown);
 // A sphere of radius r whose cap around +z (polar angle < openingRad) is cut away;
 // normals point inwards (the cavity's interior is its front side).
@@ -84,7 +91,7 @@ Mesh makeBumpySphere(int targetTriangles);
 // sides triangles, outward normals): a large, self-occluding mesh for benchmarks (800 × 128:
 // 102,400 vertices, 204,800 triangles).
 Mesh makeTorusKnot(int segments, int sides, int p = 2, int q = 3);
-// Appends `b` to `a` (indices offset).
+// Appends `b` to `a` (indices offset); a UV set survives where both have it.
 void appendMesh(Mesh& a, const Mesh& b);
 // Scales positions by s about the origin (normals unchanged).
 void scaleMesh(Mesh& mesh, double s);

@@ -80,6 +80,9 @@ struct TransportOptions {
   // range gets the counts of the whole mesh.
   double tolerance = 0;
   int toleranceMaxSamples = 65536;
+  // Shadowed only (> 0): only occluders nearer than this distance count, the range of ambient
+  // occlusion; 0: the whole scene.
+  double maxDistance = 0;
 };
 
 // Orders accepted by the transport product.
@@ -118,6 +121,27 @@ struct TransportResult {
 // Computes the transport of every vertex of `mesh` on the runtime's device.
 // Throws UsageError for bad options, InputError for an unusable mesh.
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& options);
+
+// Points on the mesh's surface that need not be vertices (lightmap texels): 3 floats each of
+// position, unit shading normal (zero: no transport, as a vertex without a normal) and the
+// normal of the face the point lies on (its rays start ε along it, on the shading normal's side).
+struct SurfacePoints {
+  std::vector<float> positions, normals, faceNormals;
+  size_t count() const { return positions.size() / 3; }
+};
+
+// The transport of each point, as computeTransport defines a vertex's, traced against `mesh`:
+// point i takes the rays a vertex of index i would (the same directions, the frame's rotation
+// from i), from its position offset along its face normal. Interreflected: the direct term at
+// the points plus one bounce that gathers, at the points' hits, the per-vertex transport of
+// the mesh with B − 1 bounces (computed here with the same options; B = 1: its shadowed
+// transport), interpolated with barycentrics:
+//   T(p) = T^(0)(p) + (1/π) ∫_{hits q} ρ(q) Σ_{k<B} T^(k)(q) max(0, n·ω) dω.
+// The result holds one entry per point (vertexCount = points, firstVertex 0); the options'
+// vertex range must be the default. Throws as computeTransport, and UsageError for point
+// arrays of unequal sizes.
+TransportResult computeTransportAtPoints(Runtime& rt, const Mesh& mesh, const SurfacePoints& points,
+                                         const TransportOptions& options);
 
 // Double-precision CPU reference with the same directions and ray origins, by brute
 // force over all triangles (small meshes only). Optionally returns the visibility of

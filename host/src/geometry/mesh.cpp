@@ -234,6 +234,10 @@ Mesh makeSquare(double h, double height, int n, bool down) {
   for (int i = 0; i <= n; ++i)
     for (int j = 0; j <= n; ++j)
       pushVertex(m, -h + 2 * h * j / n, -h + 2 * h * i / n, height, 0, 0, down ? -1 : 1);
+  m.uvs.resize(1);
+  m.uvMissing.resize(1);
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) m.uvs[0].insert(m.uvs[0].end(), {float(j) / n, 1.0f - float(i) / n});
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       const uint32_t a = uint32_t(i * (n + 1) + j), b = a + 1, c = a + uint32_t(n + 1) + 1, d = a + uint32_t(n + 1);
@@ -247,6 +251,17 @@ Mesh makeSquare(double h, double height, int n, bool down) {
 
 void appendMesh(Mesh& a, const Mesh& b) {
   const uint32_t off = uint32_t(a.vertexCount());
+  const bool aEmpty = a.indices.empty();
+  const size_t sets = aEmpty ? b.uvs.size() : std::min(a.uvs.size(), b.uvs.size());
+  a.uvs.resize(sets);
+  a.uvMissing.resize(sets);
+  for (size_t k = 0; k < sets; ++k) {
+    if (!aEmpty && (a.uvs[k].empty() || b.uvs[k].empty())) {
+      a.uvs[k].clear();
+      continue;
+    }
+    a.uvs[k].insert(a.uvs[k].end(), b.uvs[k].begin(), b.uvs[k].end());
+  }
   a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
   a.normals.insert(a.normals.end(), b.normals.begin(), b.normals.end());
   a.albedo.insert(a.albedo.end(), b.albedo.begin(), b.albedo.end());

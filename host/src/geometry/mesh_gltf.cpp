@@ -1,6 +1,7 @@
 // glTF 2.0 loader (tinygltf): every triangle primitive of the default scene in world space.
 #include <array>
 #include <cmath>
+#include <limits>
 #include <cstdint>
 #include <cstring>
 #include <functional>
@@ -56,8 +57,12 @@ Mat4 nodeMatrix(const tinygltf::Node& n) {
 // (NORMAL and COLOR_0 are empty when the primitive has none).
 struct PrimitiveAttributes {
   std::vector<double> position, normal, color;  // 3 per vertex
+  std::vector<std::vector<double>> uv;          // TEXCOORD_k: 2 per vertex (empty: none)
   size_t vertexCount = 0;
 };
+
+// The most texture coordinate sets read (TEXCOORD_0 … TEXCOORD_7).
+constexpr int kMaxUvSets = 8;
 
 PrimitiveAttributes readAttributes(const tinygltf::Model& model, const tinygltf::Primitive& prim,
                                    const std::string& path, const std::string& what) {
@@ -70,6 +75,13 @@ PrimitiveAttributes readAttributes(const tinygltf::Model& model, const tinygltf:
     a.normal = detail::readAccessor(model, it->second, 3, path, what + " NORMAL", a.vertexCount);
   if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
     a.color = detail::readAccessor(model, it->second, 3, path, what + " COLOR_0", a.vertexCount);
+  for (int k = 0; k < kMaxUvSets; ++k) {
+    const std::string name = "TEXCOORD_" + std::to_string(k);
+    if (auto it = prim.attributes.find(name); it != prim.attributes.end()) {
+      a.uv.resize(size_t(k) + 1);
+      a.uv[size_t(k)] = detail::readAccessor(model, it->second, 2, path, what + " " + name, a.vertexCount);
+    }
+  }
   return a;
 }
 
@@ -181,6 +193,12 @@ bool appendVertices(const PrimitiveAttributes& attrs, const Mat4& world, const s
     for (double q : w) mesh.normals.push_back(float(q));
     for (int ch = 0; ch < 3; ++ch) mesh.albedo.push_back(float(base[ch] * (col.empty() ? 1.0 : col[3 * i + ch])));
   }
+  // UV sets: kept per vertex (NaN where this primitive lacks the set; loadGltf drops such sets).
+  for (size_t k = 0; k < mesh.uvs.size(); ++k) {
+    const bool has = k < attrs.uv.size() && !attrs.uv[k].empty();
+    for (size_t i = 0; i < 2 * attrs.vertexCount; ++i)
+      mesh.uvs[k].push_back(has ? float(attrs.uv[k][i]) : std::numeric_limits<float>::quiet_NaN());
+  }
   return det < 0;
 }
 
@@ -195,6 +213,10 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
   checkUnitNormals(attrs.normal, path, what);
   const std::vector<uint32_t> tris = triangulate(mode, readCorners(model, prim, attrs.vertexCount, path, what));
   const uint32_t first = uint32_t(mesh.vertexCount());
+  if (!tris.empty())
+    for (size_t k = 0; k < mesh.uvMissing.size(); ++k)
+      if (mesh.uvMissing[k].empty() && (k >= attrs.uv.size() || attrs.uv[k].empty()))
+        mesh.uvMissing[k] = what + " (node " + std::to_string(nodeIndex) + ") has no TEXCOORD_" + std::to_string(k);
   const bool mirrored = appendVertices(attrs, world, baseColor(model, prim), mesh);
   for (size_t t = 0; t + 2 < tris.size(); t += 3) {
     if (mirrored)
@@ -238,7 +260,17 @@ Mesh loadGltf(const std::string& path) {
     for (int c : node.children) walk(c, world);
     onPath[ni] = 0;
   };
+  // Every set that some primitive has is read; a set that a triangle primitive lacks is dropped.
+  int sets = 0;
+  for (const auto& m : model.meshes)
+    for (const auto& prim : m.primitives)
+      for (int k = 0; k < kMaxUvSets; ++k)
+        if (prim.attributes.count("TEXCOORD_" + std::to_string(k))) sets = std::max(sets, k + 1);
+  mesh.uvs.resize(size_t(sets));
+  mesh.uvMissing.resize(size_t(sets));
   for (int r : detail::gltfRootNodes(model)) walk(r, identity());
+  for (size_t k = 0; k < mesh.uvs.size(); ++k)
+    if (!mesh.uvMissing[k].empty() || mesh.indices.empty()) mesh.uvs[k].clear();
   return mesh;
 }
 

@@ -123,6 +123,9 @@ Mesh loadObj(const std::string& path) {
   constexpr uint32_t kNone = ~0u;
   std::vector<uint32_t> firstCorner(np, kNone);
   std::vector<Corner> corners;
+  // UV set 0 from vt (v flipped to glTF's convention), kept when every corner has one.
+  std::vector<float> uv;
+  std::string uvMissing = nt == 0 ? "the file has no vt lines" : "";
   for (const auto& shape : reader.GetShapes()) {
     const auto& ix = shape.mesh.indices;
     size_t offset = 0;
@@ -147,6 +150,10 @@ Mesh loadObj(const std::string& path) {
           for (int c = 0; c < 3; ++c) mesh.positions.push_back(attrib.vertices[3 * size_t(idx.vertex_index) + c]);
           for (int c = 0; c < 3; ++c) mesh.normals.push_back(vn >= 0 ? attrib.normals[3 * size_t(vn) + c] : 0.0f);
           mesh.albedo.insert(mesh.albedo.end(), {1.0f, 1.0f, 1.0f});
+          uv.push_back(vt >= 0 ? attrib.texcoords[2 * size_t(vt)] : 0.0f);
+          uv.push_back(vt >= 0 ? 1.0f - attrib.texcoords[2 * size_t(vt) + 1] : 0.0f);
+          if (vt < 0 && uvMissing.empty())
+            uvMissing = "face " + std::to_string(f + 1) + " in '" + shape.name + "' has no vt";
         }
         mesh.indices.push_back(corners[at].id);
       }
@@ -154,6 +161,8 @@ Mesh loadObj(const std::string& path) {
     }
   }
   mesh.sourceSha256 = hash.get();
+  mesh.uvs.push_back(uvMissing.empty() ? std::move(uv) : std::vector<float>());
+  mesh.uvMissing.push_back(uvMissing);
   // Normalise the given normals (a zero one is recomputed by fillMissingNormals).
   for (size_t v = 0; v < mesh.vertexCount(); ++v) {
     float* n = &mesh.normals[3 * v];

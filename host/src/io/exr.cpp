@@ -4,12 +4,15 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfIO.h>
 #include <ImfOutputFile.h>
 #include <ImfStandardAttributes.h>
 #include <ImfStringAttribute.h>
 #include <half.h>
 
 #include <cstdio>
+#include <cstring>
+#include <memory>
 
 #include "io/exr_check.h"
 #include "prtbake/atomic_file.h"
@@ -19,13 +22,31 @@
 
 namespace prtbake {
 
-void writeExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
-              const ExrWriteOptions& options) {
+namespace {
+
+// An OpenEXR stream into a string (exrBytes).
+class StringOStream : public Imf::OStream {
+ public:
+  explicit StringOStream(std::string& s) : Imf::OStream("memory"), s_(s) {}
+  void write(const char c[], int n) override {
+    if (pos_ + uint64_t(n) > s_.size()) s_.resize(pos_ + uint64_t(n));
+    std::memcpy(&s_[pos_], c, size_t(n));
+    pos_ += uint64_t(n);
+  }
+  uint64_t tellp() override { return pos_; }
+  void seekp(uint64_t pos) override { pos_ = pos; }
+
+ private:
+  std::string& s_;
+  uint64_t pos_ = 0;
+};
+
+// The header and frame buffer of an image, then `open(header)` gives the Imf::OutputFile.
+template <class Open>
+void encodeExr(const std::string& what, int width, int height, const std::vector<ExrChannel>& channels,
+               const ExrWriteOptions& options, Open&& open) {
   if (width <= 0 || height <= 0 || channels.empty())
-    throw OutputError(path, "nothing to write (empty image)");
-  // AtomicFile owns the temp file and its removal on failure; OpenEXR writes it through
-  // writerPath(), then commit() fsyncs and renames it.
-  AtomicFile out(path);
+    throw OutputError(what, "nothing to write (empty image)");
   try {
     Imf::Header header(width, height);
     header.compression() = Imf::ZIP_COMPRESSION;
@@ -49,14 +70,34 @@ void writeExr(const std::string& path, int width, int height, const std::vector<
       }
     }
     {
-      Imf::OutputFile file(out.writerPath().c_str(), header);
-      file.setFrameBuffer(fb);
-      file.writePixels(height);
+      std::unique_ptr<Imf::OutputFile> file = open(header);
+      file->setFrameBuffer(fb);
+      file->writePixels(height);
     }
   } catch (const std::exception& e) {
-    throw OutputError(path, std::string("OpenEXR write failed: ") + e.what());
+    throw OutputError(what, std::string("OpenEXR write failed: ") + e.what());
   }
+}
+
+}  // namespace
+
+void writeExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
+              const ExrWriteOptions& options) {
+  // AtomicFile owns the temp file and its removal on failure; OpenEXR writes it through
+  // writerPath(), then commit() fsyncs and renames it.
+  AtomicFile out(path);
+  encodeExr(path, width, height, channels, options, [&](const Imf::Header& h) {
+    return std::make_unique<Imf::OutputFile>(out.writerPath().c_str(), h);
+  });
   out.commit();
+}
+
+std::string exrBytes(int width, int height, const std::vector<ExrChannel>& channels, const ExrWriteOptions& options) {
+  std::string bytes;
+  StringOStream stream(bytes);
+  encodeExr("exr", width, height, channels, options,
+            [&](const Imf::Header& h) { return std::make_unique<Imf::OutputFile>(stream, h); });
+  return bytes;
 }
 
 const std::vector<float>* ExrImage::channel(const std::string& name) const {

@@ -1,8 +1,10 @@
-// CRC-32 and PNG chunks, shared by the PNG writers and the .npz (zip) writer.
+// CRC-32 and PNG chunks, shared by the PNG writers and the .npz (zip) writer; PNG images of
+// 8- or 16-bit samples (declared for the library's users in prtbake/ibl.h).
 #pragma once
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace prtbake::detail {
 
@@ -13,3 +15,10 @@ void appendBE(std::string& s, uint32_t v);
 void appendPngChunk(std::string& png, const std::string& type, const std::string& data);
 
 }  // namespace prtbake::detail
+
+namespace prtbake {
+// PNG of width × height samples (channels 1 grey, 2 grey + alpha, 3 RGB, 4 RGBA; rows top
+// first), no colour-space chunks; OutputError for a wrong sample count.
+std::string png16Bytes(int width, int height, int channels, const std::vector<uint16_t>& samples);
+std::string png8Bytes(int width, int height, int channels, const std::vector<uint8_t>& samples);
+}  // namespace prtbake

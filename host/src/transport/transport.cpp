@@ -40,14 +40,16 @@ size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 // launches of at most detail::kTransportSampleChunk directions and returns means in double.
 class Tracer {
  public:
+  // pointsAreVertices: setup holds the mesh's vertices (else surface points, whose blocked
+  // rays are not kept: their bounce gathers another run's transport).
   Tracer(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup, bool visibility,
-         TransportResult& r)
+         TransportResult& r, bool pointsAreVertices = true)
       : rt_(rt), mesh_(mesh), o_(o), setup_(setup), visibility_(visibility), nc_(o.order * o.order) {
     // Without --tolerance the bounces trace the direct term's rays again (same count, seed,
     // origins and frames): a ray that nothing blocked there hits nothing in a bounce.
     const double packets = std::ceil(o.samples / double(std::max(o.packetWidth, 1)));
-    keepBlocked_ = visibility && o.mode == TransportMode::Interreflected && o.tolerance <= 0 && o.packetWidth > 0 &&
-                   double(mesh.vertexCount()) * packets * 2 <= kMaskBytes;
+    keepBlocked_ = pointsAreVertices && visibility && o.mode == TransportMode::Interreflected && o.tolerance <= 0 &&
+                   o.packetWidth > 0 && double(mesh.vertexCount()) * packets * 2 <= kMaskBytes;
     noMask_ = rt.upload(std::vector<float>(1, 0.0f));
     if (visibility) {
       const auto t0 = Clock::now();
@@ -59,7 +61,7 @@ class Tracer {
       nodes_ = detail::uploadBvhNodes(rt, bvh, o.packetWidth > 0);
       tris_ = detail::uploadBvhTriangles(rt, bvh, o.packetWidth > 0);
     } else {
-      unoccludable_.assign(mesh.vertexCount(), 0);
+      unoccludable_.assign(setup.count(), 0);
       nodes_ = rt.upload(std::vector<float>(8, 0.0f));
       tris_ = rt.upload(std::vector<float>(12, 0.0f));
     }
@@ -353,7 +355,7 @@ std::vector<uint32_t> directWithTolerance(Tracer& tracer, const detail::RaySetup
                                           const std::vector<uint32_t>& range, std::vector<double>* direct,
                                           std::vector<double>* visible, TransportResult& r) {
   auto needsSamples = [&](uint32_t v) { return visibility && hasNormal(setup, v) && !tracer.unoccludable()[v]; };
-  const size_t nvAll = mesh.vertexCount(), count = range.size();
+  const size_t nvAll = setup.count(), count = range.size();
   const int nc = o.order * o.order;
   std::vector<uint32_t> sampledAll;
   for (uint32_t v = 0; v < nvAll; ++v)
@@ -475,35 +477,23 @@ std::string detail::transportOptions(int order, bool visibility, int channels, i
          " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packetWidth);
 }
 
-TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
-  const auto tStart = Clock::now();
-  detail::checkTransportOptions(o);
-  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
-  TransportResult r;
-  r.order = o.order;
-  r.samples = o.samples;
-  r.device = rt.deviceLabel();
-  const size_t first = o.firstVertex, count = rangeSize(mesh, o), nvAll = mesh.vertexCount();
-  r.vertexCount = count;
-  r.firstVertex = first;
-  r.channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
-  if (count == 0) {
-    r.totalSeconds = secondsSince(tStart);
-    return r;
-  }
+namespace {
+
+// The transport of `range` (indices into setup: the mesh's vertices, or surface points) into
+// r: the direct term, its standard errors, and the bounces. bounceSource (surface points,
+// interreflected): the mesh's per-vertex transport (channels × order² each) that one bounce
+// gathers; else interreflected transport runs bounce after bounce over the vertices.
+void bake(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail::RaySetup& setup,
+          const std::vector<uint32_t>& range, const std::vector<float>* bounceSource, TransportResult& r) {
   const bool visibility = o.mode != TransportMode::Unshadowed;
-  // The direct term's program is built (or read from the caches) while the rays and the
-  // BVH are set up.
+  // The direct term's program is built (or read from the caches) while the BVH is set up.
   auto program = std::async(std::launch::async, [&rt, &o, visibility] {
     rt.program("transport.cl", detail::transportOptions(o.order, visibility, 1, o.packetWidth));
   });
-  const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
-  for (size_t v = first; v < first + count; ++v) r.verticesWithoutNormal += hasNormal(setup, v) ? 0 : 1;
-  Tracer tracer(rt, mesh, o, setup, visibility, r);
+  for (uint32_t v : range) r.verticesWithoutNormal += hasNormal(setup, v) ? 0 : 1;
+  Tracer tracer(rt, mesh, o, setup, visibility, r, bounceSource == nullptr);
   program.get();
   const auto tKernel = Clock::now();
-  std::vector<uint32_t> range(count);
-  for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);
   for (uint32_t v : range) r.verticesUnoccludable += tracer.unoccludable()[v];
 
   // The direct term T^(0) of the range; under --tolerance, the vertices that were sampled
@@ -517,12 +507,105 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
   } else {
     t0 = tracer.direct(range, o.samples, &vis, r);
   }
-  standardErrors(t0, vis, range, sampled, o.order, nvAll, r);
-  if (o.mode != TransportMode::Interreflected)
+  standardErrors(t0, vis, range, sampled, o.order, setup.count(), r);
+  if (o.mode != TransportMode::Interreflected) {
     r.coeffs.assign(t0.begin(), t0.end());
-  else
+  } else if (!bounceSource) {
     interreflect(rt, tracer, o, range, sampled, t0, r);
+  } else {
+    // One bounce gathers the mesh's transport (every point of the range; under --tolerance the
+    // sampled ones at the count its pilot predicts for E/2, the others see no surface).
+    const int nc = o.order * o.order, stride = r.channels * nc;
+    const cl::Buffer source = rt.upload(*bounceSource);
+    std::vector<double> gathered(range.size() * stride, 0.0);
+    if (!sampled) {
+      gathered = tracer.bounce(range, o.samples, r.channels, source, false, r);
+    } else if (!sampled->empty()) {
+      auto evaluate = [&](const std::vector<uint32_t>& vs, int n) { return tracer.bounce(vs, n, r.channels, source, false, r); };
+      const int n = toleranceCount(*sampled, size_t(stride), o.tolerance / 2, o, evaluate, r);
+      const std::vector<double> g = evaluate(*sampled, n);
+      for (size_t j = 0; j < sampled->size(); ++j)  // range is 0 … count − 1 here
+        std::copy_n(g.begin() + std::ptrdiff_t(j * stride), stride, gathered.begin() + std::ptrdiff_t((*sampled)[j] * size_t(stride)));
+    }
+    r.coeffs.resize(range.size() * stride);
+    for (size_t i = 0; i < range.size(); ++i)
+      for (int c = 0; c < r.channels; ++c)
+        for (int k = 0; k < nc; ++k)
+          r.coeffs[i * stride + c * nc + k] = float(t0[i * nc + k] + gathered[i * stride + c * nc + k]);
+  }
   r.kernelSeconds = secondsSince(tKernel);
+}
+
+}  // namespace
+
+TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
+  const auto tStart = Clock::now();
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  TransportResult r;
+  r.order = o.order;
+  r.samples = o.samples;
+  r.device = rt.deviceLabel();
+  const size_t first = o.firstVertex, count = rangeSize(mesh, o);
+  r.vertexCount = count;
+  r.firstVertex = first;
+  r.channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
+  if (count == 0) {
+    r.totalSeconds = secondsSince(tStart);
+    return r;
+  }
+  const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
+  std::vector<uint32_t> range(count);
+  for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);
+  bake(rt, mesh, o, setup, range, nullptr, r);
+  r.totalSeconds = secondsSince(tStart);
+  return r;
+}
+
+TransportResult computeTransportAtPoints(Runtime& rt, const Mesh& mesh, const SurfacePoints& pts,
+                                         const TransportOptions& o) {
+  const auto tStart = Clock::now();
+  detail::checkTransportOptions(o);
+  validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
+  if (pts.positions.size() % 3 || pts.normals.size() != pts.positions.size() ||
+      pts.faceNormals.size() != pts.positions.size())
+    throw UsageError("surface points", "positions, normals and face normals must hold 3 floats per point each");
+  if (o.firstVertex != 0 || o.vertexCount)
+    throw UsageError("vertex range", "the transport at surface points computes every point");
+  for (float x : pts.positions)
+    if (!std::isfinite(x)) throw UsageError("surface points", "a position is not finite");
+  TransportResult r;
+  r.order = o.order;
+  r.samples = o.samples;
+  r.device = rt.deviceLabel();
+  r.vertexCount = pts.count();
+  r.channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
+  if (r.vertexCount == 0) {
+    r.totalSeconds = secondsSince(tStart);
+    return r;
+  }
+  std::vector<float> source;  // interreflected: the mesh's transport with one bounce fewer
+  if (o.mode == TransportMode::Interreflected) {
+    TransportOptions vo = o;
+    if (o.bounces == 1)
+      vo.mode = TransportMode::Shadowed;
+    else
+      vo.bounces = o.bounces - 1;
+    const TransportResult vr = computeTransport(rt, mesh, vo);
+    const int nc = o.order * o.order;
+    source.resize(vr.vertexCount * size_t(r.channels) * nc);
+    for (size_t v = 0; v < vr.vertexCount; ++v)
+      for (int c = 0; c < r.channels; ++c)  // a grey source serves every channel
+        std::copy_n(vr.vertex(v) + (vr.channels == 1 ? 0 : c * nc), nc, &source[(v * r.channels + c) * nc]);
+    r.rays += vr.rays;
+    r.totalSamples += vr.totalSamples;
+    r.bouncesUsed = vr.bouncesUsed + 1;
+    r.bounceMaxNorm = vr.bounceMaxNorm;
+  }
+  const detail::RaySetup setup = detail::makePointRaySetup(mesh, pts, o);
+  std::vector<uint32_t> range(pts.count());
+  for (size_t i = 0; i < range.size(); ++i) range[i] = uint32_t(i);
+  bake(rt, mesh, o, setup, range, o.mode == TransportMode::Interreflected ? &source : nullptr, r);
   r.totalSeconds = secondsSince(tStart);
   return r;
 }

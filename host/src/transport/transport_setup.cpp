@@ -186,6 +186,10 @@ void checkTransportOptions(const TransportOptions& o) {
   if (o.tolerance > 0 && (o.toleranceMaxSamples < 2 * kTolerancePilotStart || o.toleranceMaxSamples > (1 << 24)))
     throw UsageError("--max-samples", std::to_string(o.toleranceMaxSamples) + " is out of range [" +
                                           std::to_string(2 * kTolerancePilotStart) + ", 16777216]");
+  if (!(o.maxDistance >= 0) || !std::isfinite(o.maxDistance))
+    throw UsageError("--max-distance", "must be a finite number ≥ 0");
+  if (o.maxDistance > 0 && o.mode != TransportMode::Shadowed)
+    throw UsageError("--max-distance", "applies to shadowed transport only (the range of the occlusion)");
   if (o.albedoOverride)
     for (float a : *o.albedoOverride)
       if (!(a >= 0 && a <= 1)) throw UsageError("--albedo", "albedo must lie in [0, 1]");
@@ -207,9 +211,11 @@ bool transportIsRgb(const Mesh& mesh, const TransportOptions& o) {
   return !mesh.greyAlbedo();
 }
 
-RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDirections) {
-  RaySetup s;
-  const size_t nv = mesh.vertexCount();
+namespace {
+
+// ε and the ray length from the scene's bounding box: a scale-relative offset; the second
+// term keeps it above float spacing (~6e-8 × |p|) for scenes far from the origin.
+void sceneScale(const Mesh& mesh, const TransportOptions& o, RaySetup& s) {
   double bmin[3], bmax[3];
   meshBounds(mesh, bmin, bmax);
   double diag2 = 0, maxAbs = 0;
@@ -218,10 +224,59 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDire
     maxAbs = std::max({maxAbs, std::abs(bmin[c]), std::abs(bmax[c])});
   }
   const double diag = std::sqrt(diag2);
-  // Scale-relative offset; the second term keeps it above float spacing (~6e-8 × |p|)
-  // for scenes far from the origin.
   s.epsilon = 1e-4 * diag + 1e-6 * maxAbs;
   s.tMax = float(4 * diag + 4 * s.epsilon);
+  if (o.maxDistance > 0) s.tMax = std::min(s.tMax, float(o.maxDistance));
+}
+
+// Point v's origin and frame: p offset by ε along the geometric normal g (turned to the side
+// of the shading normal n, so that a flipped winding does not bury the origin), and an
+// orthonormal basis about n (Duff et al. 2017) rotated by a per-index angle. A zero n marks
+// a point without a normal (origin p, frame zero).
+void setPoint(RaySetup& s, size_t v, const float* p, const float* shading, std::array<double, 3> g, uint64_t seed) {
+  for (int c = 0; c < 3; ++c) s.points[3 * v + c] = p[c];
+  double n[3] = {shading[0], shading[1], shading[2]};
+  const double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  const double glen = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+  if (!(nlen > 0)) {
+    ++s.verticesWithoutNormal;
+    for (int c = 0; c < 3; ++c) s.origins[4 * v + c] = p[c];
+    return;
+  }
+  for (double& c : n) c /= nlen;
+  if (glen > 0) {
+    for (double& c : g) c /= glen;
+    if (g[0] * n[0] + g[1] * n[1] + g[2] * n[2] < 0)
+      for (double& c : g) c = -c;
+  } else {
+    g = {n[0], n[1], n[2]};
+  }
+  for (int c = 0; c < 3; ++c) s.origins[4 * v + c] = float(p[c] + s.epsilon * g[c]);
+  const double sign = std::copysign(1.0, n[2]);
+  const double a = -1.0 / (sign + n[2]), b = n[0] * n[1] * a;
+  const double t0[3] = {1 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]};
+  const double b0[3] = {b, sign + n[1] * n[1] * a, -n[1]};
+  const double phi = 2 * kPi * unitFromBits(splitmix64(seed ^ (0xD1B54A32D192ED03ull * (v + 1))));
+  const double cp = std::cos(phi), sp = std::sin(phi);
+  for (int c = 0; c < 3; ++c) {
+    s.frames[12 * v + c] = float(cp * t0[c] + sp * b0[c]);
+    s.frames[12 * v + 4 + c] = float(-sp * t0[c] + cp * b0[c]);
+    s.frames[12 * v + 8 + c] = float(n[c]);
+  }
+}
+
+void allocate(RaySetup& s, size_t n) {
+  s.points.assign(n * 3, 0.0f);
+  s.origins.assign(n * 4, 0.0f);
+  s.frames.assign(n * 12, 0.0f);
+}
+
+}  // namespace
+
+RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDirections) {
+  RaySetup s;
+  const size_t nv = mesh.vertexCount();
+  sceneScale(mesh, o, s);
   // Geometric normal per position (welded by exact coordinates): the area-weighted sum
   // of the face normals of every triangle touching that position, in triangle order.
   // Positions are welded by sorting the vertices by coordinates (equal as floats: one).
@@ -246,41 +301,19 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDire
     }
   }
   if (withDirections) s.dirs = directionChunk(o.samples, 0, o.samples, o.seed, o.sampler);
-  s.origins.assign(nv * 4, 0.0f);
-  s.frames.assign(nv * 12, 0.0f);
-  for (size_t v = 0; v < nv; ++v) {
-    double n[3] = {mesh.normals[3 * v], mesh.normals[3 * v + 1], mesh.normals[3 * v + 2]};
-    const double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    std::array<double, 3> g = geo[weld[v]];
-    double glen = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-    if (!(nlen > 0)) {
-      ++s.verticesWithoutNormal;
-      for (int c = 0; c < 3; ++c) s.origins[4 * v + c] = p[3 * v + c];
-      continue;
-    }
-    for (double& c : n) c /= nlen;
-    // Offset along the geometric normal, turned to the side of the shading normal
-    // (so that a flipped winding does not bury the origin).
-    if (glen > 0) {
-      for (double& c : g) c /= glen;
-      if (g[0] * n[0] + g[1] * n[1] + g[2] * n[2] < 0)
-        for (double& c : g) c = -c;
-    } else {
-      g = {n[0], n[1], n[2]};
-    }
-    for (int c = 0; c < 3; ++c) s.origins[4 * v + c] = float(p[3 * v + c] + s.epsilon * g[c]);
-    // Orthonormal basis (Duff et al. 2017), then rotated about n by a per-vertex angle.
-    const double sign = std::copysign(1.0, n[2]);
-    const double a = -1.0 / (sign + n[2]), b = n[0] * n[1] * a;
-    const double t0[3] = {1 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]};
-    const double b0[3] = {b, sign + n[1] * n[1] * a, -n[1]};
-    const double phi = 2 * kPi * unitFromBits(splitmix64(o.seed ^ (0xD1B54A32D192ED03ull * (v + 1))));
-    const double cp = std::cos(phi), sp = std::sin(phi);
-    for (int c = 0; c < 3; ++c) {
-      s.frames[12 * v + c] = float(cp * t0[c] + sp * b0[c]);
-      s.frames[12 * v + 4 + c] = float(-sp * t0[c] + cp * b0[c]);
-      s.frames[12 * v + 8 + c] = float(n[c]);
-    }
+  allocate(s, nv);
+  for (size_t v = 0; v < nv; ++v) setPoint(s, v, &p[3 * v], &mesh.normals[3 * v], geo[weld[v]], o.seed);
+  return s;
+}
+
+RaySetup makePointRaySetup(const Mesh& mesh, const SurfacePoints& pts, const TransportOptions& o) {
+  RaySetup s;
+  sceneScale(mesh, o, s);
+  const size_t n = pts.count();
+  allocate(s, n);
+  for (size_t v = 0; v < n; ++v) {
+    const float* f = &pts.faceNormals[3 * v];
+    setPoint(s, v, &pts.positions[3 * v], &pts.normals[3 * v], {f[0], f[1], f[2]}, o.seed);
   }
   return s;
 }

@@ -15,12 +15,14 @@
 namespace prtbake::detail {
 
 struct RaySetup {
+  std::vector<float> points;   // V × 3: the points p (the mesh's vertices, or surface points)
   std::vector<float> origins;  // V × 4: p + ε n_g
   std::vector<float> frames;   // V × 12: t, b, n as float4 (n = 0: no normal)
   std::vector<float> dirs;     // N × 4: local directions (float); empty unless asked for
   float tMax = 0;              // ray length
   double epsilon = 0;          // the origin offset
   size_t verticesWithoutNormal = 0;
+  size_t count() const { return points.size() / 3; }
 };
 
 // Directions per launch of the transport kernels: they sum at most this many in float
@@ -42,6 +44,9 @@ std::vector<float> directionChunk(int samples, int first, int count, uint64_t se
 // Origins and frames of every vertex; with `withDirections`, the whole direction set of
 // options.samples too (the CPU reference reads it; the device takes it in chunks).
 RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& options, bool withDirections = true);
+// The same for surface points (computeTransportAtPoints): the offset along each point's own
+// face normal, the frame's rotation from the point's index; ε and the ray length from `mesh`.
+RaySetup makePointRaySetup(const Mesh& mesh, const SurfacePoints& points, const TransportOptions& options);
 // The BVH's nodes on the device: the 4-wide tree for the packet kernels (`wide`), else
 // the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
 // no ray enters.

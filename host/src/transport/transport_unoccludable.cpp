@@ -17,9 +17,9 @@ namespace detail {
 // has max_{q ∈ box} n·q = Σ_c max(n_c bmin_c, n_c bmax_c) below that is skipped whole.
 // Vertices are independent: blocks of them on the host's threads.
 std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const RaySetup& setup) {
-  const size_t nv = mesh.vertexCount();
+  const size_t nv = setup.count();
   std::vector<uint8_t> out(nv, 0);
-  const auto& P = mesh.positions;
+  const auto& P = setup.points;
   parallelFor(nv, hostThreads(), [&](size_t begin, size_t end, int) {
     std::vector<int> stack;
     stack.reserve(128);
@@ -55,7 +55,8 @@ std::vector<uint8_t> unoccludableFromBvh(const Mesh& mesh, const Bvh& bvh, const
             const uint32_t t = bvh.triangles[size_t(node.offset) + i];
             for (int k = 0; k < 3 && !blocked; ++k) {
               const uint32_t q = mesh.indices[3 * size_t(t) + k];
-              const double d = n[0] * P[3 * q] + n[1] * P[3 * q + 1] + n[2] * P[3 * q + 2];
+              const float* Q = &mesh.positions[3 * size_t(q)];
+              const double d = n[0] * Q[0] + n[1] * Q[1] + n[2] * Q[2];
               if (d > thr) blocked = true;
             }
           }

@@ -1,0 +1,205 @@
+// Lightmap outputs: OpenEXR, KTX 2.0, the AO's PNG and the sidecar (see prtbake/lightmap.h).
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "io/gltf.h"
+
+#include "io/ktx2.h"
+#include "io/png_chunks.h"
+#include "prtbake/atomic_file.h"
+#include "prtbake/error.h"
+#include "prtbake/exr.h"
+#include "prtbake/lightmap.h"
+
+namespace prtbake {
+namespace {
+
+const char* productName(LightmapProduct p) {
+  switch (p) {
+    case kLightmapAo: return "ao";
+    case kLightmapBent: return "bent";
+    case kLightmapIrradiance: return "irradiance";
+    case kLightmapTransport: return "transport";
+  }
+  return "?";
+}
+
+// The product's planes (texel-major, `width` floats per texel).
+const std::vector<float>& planeOf(const LightmapResult& lm, LightmapProduct p, int* width) {
+  const std::vector<float>* v = nullptr;
+  switch (p) {
+    case kLightmapAo: v = &lm.ao, *width = 1; break;
+    case kLightmapBent: v = &lm.bent, *width = 3; break;
+    case kLightmapIrradiance: v = &lm.irradiance, *width = 3; break;
+    case kLightmapTransport: v = &lm.transport, *width = lm.transportChannels * lm.order * lm.order; break;
+  }
+  if (!v || v->empty()) throw UsageError("--products", std::string("the lightmap has no ") + productName(p) + " (not asked for)");
+  return *v;
+}
+
+std::vector<float> validity(const LightmapResult& lm) {
+  std::vector<float> a(lm.texels());
+  for (size_t i = 0; i < a.size(); ++i) a[i] = lm.valid(i) ? 1.0f : 0.0f;
+  return a;
+}
+
+}  // namespace
+
+std::string lightmapExrBytes(const LightmapResult& lm, LightmapProduct product, bool half) {
+  int width = 0;
+  const std::vector<float>& plane = planeOf(lm, product, &width);
+  const size_t n = lm.texels();
+  std::vector<std::string> names;
+  if (product == kLightmapAo) {
+    names = {"Y"};
+  } else if (product != kLightmapTransport) {
+    names = {"R", "G", "B"};
+  } else {
+    const int nc = lm.order * lm.order;
+    for (int c = 0; c < lm.transportChannels; ++c)
+      for (int k = 0; k < nc; ++k)
+        names.push_back((lm.transportChannels == 3 ? std::string(1, "RGB"[c]) + "." : std::string()) + "T" + std::to_string(k));
+  }
+  std::vector<std::vector<float>> planes(names.size(), std::vector<float>(n));
+  for (size_t i = 0; i < n; ++i)
+    for (size_t c = 0; c < names.size(); ++c) planes[c][i] = plane[i * size_t(width) + c];
+  const std::vector<float> alpha = validity(lm);
+  std::vector<ExrChannel> channels;
+  for (size_t c = 0; c < names.size(); ++c) channels.push_back({names[c], planes[c].data()});
+  channels.push_back({"A", alpha.data()});
+  ExrWriteOptions o;
+  o.half = half;
+  o.attributes = {{"prtbake.product", productName(product)},
+                  {"prtbake.uvSet", std::to_string(lm.uvSet)},
+                  {"prtbake.rows", "row 0 at v = 0 (glTF's UV convention: the image's top)"}};
+  return exrBytes(lm.width, lm.height, channels, o);
+}
+
+std::string lightmapKtx2Bytes(const LightmapResult& lm, LightmapProduct product) {
+  if (product == kLightmapTransport) throw UsageError("--format", "the transport goes to OpenEXR, not KTX2");
+  int width = 0;
+  const std::vector<float>& plane = planeOf(lm, product, &width);
+  std::vector<float> rgba(lm.texels() * 4);
+  for (size_t i = 0; i < lm.texels(); ++i) {
+    for (int c = 0; c < 3; ++c) rgba[4 * i + c] = plane[i * size_t(width) + (width == 1 ? 0 : c)];
+    rgba[4 * i + 3] = lm.valid(i) ? 1.0f : 0.0f;
+  }
+  ktx2::Layout layout;
+  layout.width = uint32_t(lm.width), layout.height = uint32_t(lm.height);
+  return ktx2::rgbaFloatBytes(layout, {{rgba.data(), 4, lm.texels()}},
+                              {{"prtbake.product", productName(product)}, {"prtbake.uvSet", std::to_string(lm.uvSet)}});
+}
+
+std::string lightmapAoPngBytes(const LightmapResult& lm, int bits) {
+  if (lm.ao.empty()) throw UsageError("--products", "the lightmap has no ao (not asked for)");
+  if (bits != 8 && bits != 16) throw UsageError("--png-bits", "must be 8 or 16");
+  const double top = bits == 8 ? 255.0 : 65535.0;
+  if (bits == 8) {
+    std::vector<uint8_t> px(lm.texels());
+    for (size_t i = 0; i < px.size(); ++i) px[i] = uint8_t(std::lround(std::clamp(double(lm.ao[i]), 0.0, 1.0) * top));
+    return png8Bytes(lm.width, lm.height, 1, px);
+  }
+  std::vector<uint16_t> px(lm.texels());
+  for (size_t i = 0; i < px.size(); ++i) px[i] = uint16_t(std::lround(std::clamp(double(lm.ao[i]), 0.0, 1.0) * top));
+  return png16Bytes(lm.width, lm.height, 1, px);
+}
+
+std::string lightmapGltfBytes(const std::string& path, const Mesh& mesh, const LightmapResult& lm) {
+  if (mesh.format != Mesh::Format::Gltf || mesh.sourcePath.empty())
+    throw UsageError("--gltf", "a glTF copy needs a glTF input (this mesh is not one)");
+  if (lm.ao.empty()) throw UsageError("--gltf", "the glTF copy carries the AO: add ao to --products");
+  tinygltf::Model model;
+  detail::loadGltfModel(mesh.sourcePath, model);
+  // The AO's PNG in buffer 0 (a .glb's BIN chunk; a .gltf embeds it as a data URI).
+  if (model.buffers.empty()) model.buffers.emplace_back();
+  auto& buffer = model.buffers[0].data;
+  while (buffer.size() % 4) buffer.push_back(0);
+  const std::string png = lightmapAoPngBytes(lm, 8);
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = buffer.size();
+  view.byteLength = png.size();
+  buffer.insert(buffer.end(), png.begin(), png.end());
+  model.bufferViews.push_back(view);
+  tinygltf::Image image;
+  image.name = "prtbake_ao";
+  image.bufferView = int(model.bufferViews.size() - 1);
+  image.mimeType = "image/png";
+  model.images.push_back(image);
+  tinygltf::Sampler sampler;
+  sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+  sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+  sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+  model.samplers.push_back(sampler);
+  tinygltf::Texture texture;
+  texture.source = int(model.images.size() - 1);
+  texture.sampler = int(model.samplers.size() - 1);
+  model.textures.push_back(texture);
+  const int tex = int(model.textures.size() - 1);
+  // Every material the baked primitives use reads it on the lightmap's UV set; a primitive
+  // without a material gets a default one that does.
+  int fallback = -1;
+  for (const auto& gp : mesh.gltfPrimitives) {
+    auto& prim = model.meshes[size_t(gp.mesh)].primitives[size_t(gp.primitive)];
+    if (prim.material < 0) {
+      if (fallback < 0) {
+        model.materials.emplace_back();
+        model.materials.back().name = "prtbake_default";
+        fallback = int(model.materials.size() - 1);
+      }
+      prim.material = fallback;
+    }
+    auto& occ = model.materials[size_t(prim.material)].occlusionTexture;
+    occ.index = tex;
+    occ.texCoord = lm.uvSet;
+    occ.strength = 1.0;
+  }
+  const bool binary = path.size() >= 4 && (path.compare(path.size() - 4, 4, ".glb") == 0 ||
+                                           path.compare(path.size() - 4, 4, ".GLB") == 0);
+  for (auto& b : model.buffers) b.uri.clear();
+  tinygltf::TinyGLTF writer;
+  std::ostringstream os;
+  if (!writer.WriteGltfSceneToStream(&model, os, !binary, binary))
+    throw OutputError(path, "cannot serialise the glTF copy");
+  return os.str();
+}
+
+std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOptions& o, const LightmapResult& lm) {
+  using nlohmann::json;
+  json j;
+  j["tool"] = {{"name", "prtbake"}, {"version", version()}};
+  j["product"] = "lightmap";
+  j["input"] = {{"path", inputPath}};
+  j["parameters"] = {{"products", lightmapProductsName(lm.products)}, {"uv_set", lm.uvSet}, {"size", lm.width},
+                     {"samples", o.samples}, {"seed", o.seed}, {"order", lm.order}, {"bounces", o.bounces},
+                     {"max_distance", o.maxDistance}, {"dilation", o.dilation}, {"unocclude", o.unocclude}};
+  if (o.tolerance > 0) j["parameters"]["tolerance"] = o.tolerance;
+  j["conventions"] = {
+      {"texel", "texel (x, y) covers u in [x, x+1]/W, v in [y, y+1]/H; row 0 at v = 0 (glTF: the image's top)"},
+      {"ao", "cosine-weighted unoccluded fraction of the hemisphere, 1 on an open plane"},
+      {"bent", "unit cosine-weighted mean unoccluded direction, object space"},
+      {"irradiance", "E/pi, linear RGB: the exit radiance of a white Lambertian surface"},
+      {"transport", "per-texel PRT transport, real SH with the Condon-Shortley phase, i = l(l+1)+m; "
+                    "shade rho * sum_i l_i T_i"},
+      {"alpha", "A = 1 where the texel's sample is valid (baked or moved out of geometry), else 0"}};
+  j["texels"] = {{"width", lm.width}, {"height", lm.height}, {"baked", lm.baked}, {"moved", lm.moved},
+                 {"buried", lm.buried}, {"dilated", lm.dilated},
+                 {"empty", lm.texels() - lm.baked - lm.moved - lm.buried - lm.dilated},
+                 {"centre_outside_triangle", lm.centreOutside}, {"touched_by_two_charts", lm.contested}};
+  j["mesh"] = {{"charts", lm.charts}, {"degenerate_triangles", lm.degenerateTriangles}};
+  j["samples"] = {{"per_texel", lm.samples}, {"rays", lm.rays}};
+  j["error"] = {{"max_std_error", lm.maxStdError}, {"mean_std_error", lm.meanStdError},
+                {"meaning", "standard error of the transport's coefficient vector (the AO pass when asked for); "
+                            "AO's is 2 sqrt(pi) times that of T_0"}};
+  j["timings"] = {{"raster_seconds", lm.rasterSeconds}, {"unocclude_seconds", lm.unoccludeSeconds},
+                  {"bake_seconds", lm.bakeSeconds}, {"repair_seconds", lm.repairSeconds},
+                  {"total_seconds", lm.totalSeconds}};
+  j["device"] = lm.device;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace prtbake

@@ -1,0 +1,703 @@
+// Lightmaps (prtbake/lightmap.h) against closed forms and the per-vertex transport, and the
+// repairs each against the failure it prevents: samples under a wall, sliver triangles, texels
+// that bilinear and mip lookups read; the UV checks and the command's bad inputs.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "prtbake/error.h"
+#include "prtbake/exr.h"
+#include "prtbake/lightmap.h"
+#include "prtbake/sh.h"
+#include "prtbake/transport.h"
+#include "engine_test_helpers.h"
+#include "test_common.h"
+
+using namespace prtbake;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+using Vec3 = std::array<double, 3>;
+struct UvRect {
+  double u0, v0, u1, v1;
+};
+
+// A quad p0 p1 p2 p3 (counter-clockwise seen from its front), its corners at the rectangle's
+// (u0, v1), (u1, v1), (u1, v0), (u0, v0) in UV set 0.
+void addQuad(Mesh& m, const Vec3* p, const UvRect& r) {
+  const uint32_t base = uint32_t(m.vertexCount());
+  const double e1[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+  const double e2[3] = {p[3][0] - p[0][0], p[3][1] - p[0][1], p[3][2] - p[0][2]};
+  double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+  const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  const double uv[4][2] = {{r.u0, r.v1}, {r.u1, r.v1}, {r.u1, r.v0}, {r.u0, r.v0}};
+  m.uvs.resize(1);
+  m.uvMissing.resize(1);
+  for (int v = 0; v < 4; ++v) {
+    for (int a = 0; a < 3; ++a) {
+      m.positions.push_back(float(p[v][a]));
+      m.normals.push_back(float(n[a] / len));
+      m.albedo.push_back(1.0f);
+    }
+    m.uvs[0].insert(m.uvs[0].end(), {float(uv[v][0]), float(uv[v][1])});
+  }
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
+}
+
+// The floor z = 0 over [−h, h]², facing +z, as one quad (two triangles: a low-poly floor).
+void addFloor(Mesh& m, double h, const UvRect& r) {
+  const Vec3 p[4] = {{-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}};
+  addQuad(m, p, r);
+}
+
+// The closed box [lo, hi] with outward faces, each face's UVs in its sixth of the rectangle.
+void addBox(Mesh& m, const Vec3& lo, const Vec3& hi, const UvRect& r) {
+  for (int axis = 0, f = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side, ++f) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      Vec3 p[4];
+      const double c[4][2] = {{lo[u], lo[v]}, {hi[u], lo[v]}, {hi[u], hi[v]}, {lo[u], hi[v]}};
+      for (int k = 0; k < 4; ++k) {
+        p[k][axis] = side ? hi[axis] : lo[axis];
+        p[k][u] = c[k][0], p[k][v] = c[k][1];
+      }
+      if (side == 0) std::swap(p[1], p[3]);  // (u, v) counter-clockwise faces +axis
+      const double w = (r.u1 - r.u0) / 6;
+      addQuad(m, p, {r.u0 + f * w, r.v0, r.u0 + (f + 0.9) * w, r.v1});
+    }
+}
+
+// A disk of radius a at height z facing down (−z), a fan of `segments` triangles, its UVs the
+// disk's image in the rectangle.
+void addDisk(Mesh& m, double a, double z, int segments, const UvRect& r) {
+  const uint32_t base = uint32_t(m.vertexCount());
+  m.uvs.resize(1);
+  m.uvMissing.resize(1);
+  auto push = [&](double x, double y) {
+    m.positions.insert(m.positions.end(), {float(x), float(y), float(z)});
+    m.normals.insert(m.normals.end(), {0.0f, 0.0f, -1.0f});
+    m.albedo.insert(m.albedo.end(), {1.0f, 1.0f, 1.0f});
+    m.uvs[0].insert(m.uvs[0].end(), {float(r.u0 + (r.u1 - r.u0) * (0.5 + 0.5 * x / a)),
+                                     float(r.v0 + (r.v1 - r.v0) * (0.5 + 0.5 * y / a))});
+  };
+  push(0, 0);
+  for (int s = 0; s < segments; ++s) push(a * std::cos(2 * kPi * s / segments), a * std::sin(2 * kPi * s / segments));
+  for (int s = 0; s < segments; ++s)  // clockwise seen from +z: faces down
+    m.indices.insert(m.indices.end(), {base, uint32_t(base + 1 + (s + 1) % segments), uint32_t(base + 1 + s)});
+}
+
+// The view factor from a point on the floor, at distance x from the axis of a parallel disk of
+// radius a at height h, to the disk: F = ½ [1 − (h² + x² − a²) / √((h² + x² + a²)² − 4 a² x²)]
+// (the differential area to a parallel coaxial-offset disk; Siegel & Howell, configuration B-13).
+// The floor's ambient occlusion is 1 − F.
+double diskViewFactor(double h, double x, double a) {
+  const double s = h * h + x * x + a * a;
+  return 0.5 * (1 - (h * h + x * x - a * a) / std::sqrt(s * s - 4 * a * a * x * x));
+}
+
+ShCoeffs constantEnv(double L) {
+  ShCoeffs c;
+  c.order = 1;
+  const double l0 = L * std::sqrt(4 * kPi);
+  c.rgb = {Rgb{l0, l0, l0}};
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("Lightmap: the floor under a disk matches the view factor's closed form at several sizes", "[lightmap]") {
+  // Floor [−2, 2]² on UV [0, 1] × [0, 0.5]... the floor takes the left half, the disk the right.
+  const double h = 2, a = 0.6, z = 0.5;
+  const int segments = 96;
+  Mesh m;
+  addFloor(m, h, {0, 0, 0.5, 1});
+  addDisk(m, a, z, segments, {0.55, 0.05, 0.95, 0.45});
+  // The fan's equal-area radius: the formula is for a round disk.
+  const double aEff = a * std::sqrt(segments * std::sin(2 * kPi / segments) / (2 * kPi));
+  for (int size : {32, 64}) {
+    LightmapOptions o;
+    o.size = size;
+    o.samples = 2048;
+    o.products = kLightmapAo | kLightmapIrradiance;
+    const double L = 0.7;
+    const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(L), o);
+    REQUIRE(lm.width == size);
+    // Every floor texel whose centre lies within 2.5 disk radii of the axis.
+    double worst = 0, worstBroken = 1e9, worstIrr = 0;
+    int checked = 0;
+    for (int y = 0; y < size; ++y)
+      for (int x = 0; x < size / 2; ++x) {
+        const Vec3 p = {-h + 2 * h * (x + 0.5) / (size / 2), h - 2 * h * (y + 0.5) / size, 0};
+        const double r = std::hypot(p[0], p[1]);
+        if (r > 2.5 * a) continue;
+        const size_t i = size_t(y) * size + x;
+        REQUIRE(lm.valid(i));
+        const double exact = 1 - diskViewFactor(z, r, aEff);
+        const double broken = 1 - diskViewFactor(1.5 * z, r, aEff);  // the disk 50 % higher
+        worst = std::max(worst, std::abs(lm.ao[i] - exact));
+        worstBroken = std::min(worstBroken, std::abs(lm.ao[i] - broken) + (r > a ? 1.0 : 0.0));
+        worstIrr = std::max(worstIrr, std::abs(lm.irradiance[3 * i] - L * exact));
+        ++checked;
+      }
+    // Tolerance: the estimator's standard error bounds the noise (√(A(1 − A)/N) ≤ 0.011 at
+    // N = 2048 for independent rays; the low-discrepancy set does better), 4 σ of that is 0.044;
+    // the fan's shape beyond its equal-area radius moves F by < 0.002 at these distances.
+    INFO("size " << size << ": " << checked << " texels, largest |AO - exact| " << worst
+                 << ", irradiance " << worstIrr << ", against the raised disk " << worstBroken);
+    CHECK(checked > 20);
+    CHECK(worst < 0.03);
+    CHECK(worstIrr < 0.03 * L);
+    // The oracle can fail: under the disk, the raised disk's closed form is off by more.
+    CHECK(worstBroken > 0.06);
+  }
+}
+
+TEST_CASE("Lightmap: per-texel transport equals the per-vertex transport where a vertex is a texel sample",
+          "[lightmap]") {
+  // The floor as 2 × 2 quads: its centre vertex (0, 0) at UV (0.5, 0.5), the centre of texel
+  // (7, 7) of a 15² map. A disk above it off-centre.
+  Mesh m = makeSquare(2, 0, 2, false);
+  for (float& v : m.uvs[0]) v *= 0.5f;  // the floor in UV [0, 0.5]²: keep the disk apart
+  addDisk(m, 0.8, 0.7, 64, {0.6, 0.6, 0.95, 0.95});
+  // makeSquare's centre vertex (index 4: row 1, column 1) sits at UV (0.25, 0.25): texel (3, 3)
+  // of a 14² map has its centre there ((3 + 0.5) / 14 = 0.25).
+  REQUIRE(m.positions[12] == 0.0f);
+  REQUIRE(m.positions[13] == 0.0f);
+  REQUIRE(m.uvs[0][8] == 0.25f);
+  LightmapOptions o;
+  o.size = 14;
+  o.samples = 16384;
+  o.order = 3;
+  o.products = kLightmapTransport;
+  const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(1), o);
+  TransportOptions to;
+  to.samples = 16384;
+  to.order = 3;
+  const TransportResult vt = computeTransport(test::runtime(), m, to);
+  const size_t texel = 3 * 14 + 3;
+  REQUIRE(lm.valid(texel));
+  double worst = 0;
+  for (int k = 0; k < 9; ++k) worst = std::max(worst, double(std::abs(lm.transport[texel * 9 + k] - vt.vertex(4)[k])));
+  // Two independent estimates of the same integral: their difference has √2 × each one's
+  // standard error, at most about √((9/4π)/N) = 0.0066 per vector at N = 16384; 3 σ √2 = 0.028
+  // bounds it; the disk changes the coefficients by 0.1 or more, so a wrong point fails.
+  INFO("largest coefficient difference " << worst << ", vertex T0 " << vt.vertex(4)[0]);
+  CHECK(worst < 0.028);
+  CHECK(std::abs(vt.vertex(4)[0] - clampedCosineProjected(3, 0, 0, 1)[0]) > 0.05);  // the disk matters
+}
+
+TEST_CASE("Lightmap: a wall on a low-poly floor: no light under it, no shadow bleeding past its foot", "[lightmap]") {
+  // One quad of floor [−1, 1]² on UV [0, 1] × [0, 0.5]; a closed box wall 0.1 thick across it
+  // (x ∈ [0.04, 0.135]) whose faces take UV [0, 1] × [0.6, 0.9].
+  Mesh m;
+  addQuad(m, std::array<Vec3, 4>{Vec3{-1, -1, 0}, Vec3{1, -1, 0}, Vec3{1, 1, 0}, Vec3{-1, 1, 0}}.data(), {0, 0, 1, 0.5});
+  addBox(m, {0.04, -1.2, -0.05}, {0.135, 1.2, 0.6}, {0, 0.6, 1, 0.9});
+  const int size = 64;  // floor texels are 2/64 = 0.03125 wide in x: two lie under the wall, one straddles its face
+  auto bake = [&](bool unocclude) {
+    LightmapOptions o;
+    o.size = size;
+    o.samples = 512;
+    o.dilation = 0;
+    o.unocclude = unocclude;
+    return computeLightmap(test::runtime(), m, constantEnv(1), o);
+  };
+  const LightmapResult lm = bake(true), raw = bake(false);
+  double underMax = 0, straddleMinFixed = 1, straddleMaxRaw = 0;
+  int under = 0, straddle = 0;
+  for (int y = 4; y < 28; ++y)  // the floor's rows (v < 0.5), away from its ends
+    for (int x = 0; x < size; ++x) {
+      const double x0 = -1 + 2.0 * x / size, x1 = -1 + 2.0 * (x + 1) / size, xc = (x0 + x1) / 2;
+      const size_t i = size_t(y) * size + x;
+      if (x0 >= 0.04 && x1 <= 0.135) {  // the whole texel under the wall
+        underMax = std::max(underMax, double(lm.ao[i]));
+        ++under;
+      } else if (xc > 0.04 && xc < 0.135) {  // centre under the wall, part of the texel outside
+        straddleMinFixed = std::min(straddleMinFixed, double(lm.ao[i]));
+        straddleMaxRaw = std::max(straddleMaxRaw, double(raw.ao[i]));
+        CHECK(TexelState(lm.state[i]) == TexelState::Moved);
+        ++straddle;
+      }
+    }
+  INFO(under << " texels under the wall: largest AO " << underMax << "; " << straddle
+             << " straddling its faces: smallest AO moved out " << straddleMinFixed << ", largest left inside "
+             << straddleMaxRaw);
+  REQUIRE(under > 0);
+  REQUIRE(straddle > 0);
+  // Under the wall: every ray meets its inside (AO exactly 0 but for rays slipping along the floor).
+  CHECK(underMax < 0.02);
+  // A sample moved out to the wall's foot sees half its hemisphere's sky at least (a wall is a
+  // half-space at most: AO ≥ 0.5 − noise); left inside it sees none (the bleed the repair stops).
+  CHECK(straddleMinFixed > 0.4);
+  CHECK(straddleMaxRaw < 0.02);
+  CHECK(lm.moved >= size_t(straddle));
+  CHECK(raw.moved == 0);
+}
+
+TEST_CASE("Lightmap: a sliver triangle thinner than a texel is baked (conservative rasterisation)", "[lightmap]") {
+  // A floor triangle 0.2 texels wide in UV, lying between texel centres: no centre is inside.
+  Mesh m;
+  m.uvs.resize(1);
+  m.uvMissing.resize(1);
+  const int size = 32;
+  const float u0 = (10 + 0.6f) / size, u1 = (10 + 0.8f) / size;
+  const float p[3][3] = {{0, 0, 0}, {0.1f, 3, 0}, {0.0f, 3, 0}};
+  const float uv[3][2] = {{u0, 0.05f}, {u1, 0.95f}, {u0, 0.95f}};
+  for (int k = 0; k < 3; ++k) {
+    m.positions.insert(m.positions.end(), p[k], p[k] + 3);
+    m.normals.insert(m.normals.end(), {0, 0, 1});
+    m.albedo.insert(m.albedo.end(), {1, 1, 1});
+    m.uvs[0].insert(m.uvs[0].end(), uv[k], uv[k] + 2);
+  }
+  m.indices = {0, 1, 2};
+  LightmapOptions o;
+  o.size = size;
+  o.samples = 64;
+  o.dilation = 0;
+  const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(1), o);
+  // Texel column 10 (its centre at 10.5 < 10.6) holds the whole sliver for rows 2 … 29.
+  int baked = 0;
+  for (int y = 2; y < 30; ++y) {
+    const size_t i = size_t(y) * size + 10;
+    CHECK(lm.valid(i));
+    CHECK(std::abs(lm.ao[i] - 1.0f) < 1e-6f);  // an open plane: the closed form
+    baked += lm.valid(i);
+  }
+  CHECK(baked == 28);
+  CHECK(lm.centreOutside == lm.baked);  // none of the sliver's texels has its centre inside
+}
+
+TEST_CASE("Lightmap: dilation leaves no unbaked texel in any bilinear or mip footprint of a baked one", "[lightmap]") {
+  // A disc-like fan chart in the middle of the map with empty space around it.
+  Mesh m;
+  addDisk(m, 1.0, 0.0, 24, {0.2, 0.25, 0.7, 0.75});
+  auto footprintsClean = [](const LightmapResult& lm, int levels) {
+    // Level k's texel (X, Y) averages the 2^k × 2^k block; bilinear at any point of a valid
+    // texel's area reads the valid texel and its 8 neighbours at level 0, and the blocks
+    // around its block at level k.
+    for (int k = 0; k < levels; ++k) {
+      const int b = 1 << k, w = lm.width / b;
+      for (int y = 0; y < lm.height; ++y)
+        for (int x = 0; x < lm.width; ++x) {
+          if (!lm.valid(size_t(y) * lm.width + x)) continue;
+          const int X = x / b, Y = y / b;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int nx = X + dx, ny = Y + dy;
+              if (nx < 0 || ny < 0 || nx >= w || ny >= w) continue;
+              for (int j = 0; j < b; ++j)
+                for (int i = 0; i < b; ++i)
+                  if (TexelState(lm.state[size_t(ny * b + j) * lm.width + nx * b + i]) == TexelState::Empty) return false;
+            }
+        }
+    }
+    return true;
+  };
+  LightmapOptions o;
+  o.size = 64;
+  o.samples = 16;
+  o.products = kLightmapAo | kLightmapBent;
+  const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(1), o);
+  CHECK(lm.dilated > 0);
+  CHECK(footprintsClean(lm, 3));  // levels 0, 1, 2 (64², 32², 16²): 8 rings cover them
+  // Dilated texels hold their neighbours' values (the open plane's AO 1, unit bent normals).
+  for (size_t i = 0; i < lm.texels(); ++i)
+    if (TexelState(lm.state[i]) == TexelState::Dilated) {
+      REQUIRE(std::abs(lm.ao[i] - 1.0f) < 1e-5f);
+      REQUIRE(std::abs(std::hypot(lm.bent[3 * i], lm.bent[3 * i + 1], lm.bent[3 * i + 2]) - 1.0) < 1e-5);
+    }
+  o.dilation = 0;
+  CHECK_FALSE(footprintsClean(computeLightmap(test::runtime(), m, constantEnv(1), o), 1));
+}
+
+TEST_CASE("Lightmap: the bent normal and AO at the foot of a wall match the half-space closed form", "[lightmap]") {
+  // A floor beside a tall wall at x = 0.2 (its face towards −x): the bent normal of the floor
+  // near it tilts to −x, and is n far from it.
+  Mesh m;
+  addFloor(m, 1, {0, 0, 0.5, 1});
+  const Vec3 w[4] = {{0.2, -1, 0}, {0.2, -1, 3}, {0.2, 1, 3}, {0.2, 1, 0}};  // faces −x
+  addQuad(m, w, {0.6, 0.1, 0.9, 0.9});
+  LightmapOptions o;
+  o.size = 32;
+  o.samples = 1024;
+  o.products = kLightmapBent | kLightmapAo;
+  const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(1), o);
+  // The floor spans u ∈ [0, 0.5]: 16 columns of 0.125 m; column 9's centre is at x = 0.1875,
+  // 0.0125 m from the wall (3 m tall, 2 m long: nearly a half-space from there), column 2's at
+  // x = −0.6875. At the foot of a half-space wall the unoccluded half hemisphere (x < 0) has the
+  // cosine-weighted mean direction ∫ cos θ ω dω = (−2/3, 0, π/3): B = (−2, 0, π)/√(4 + π²), and
+  // AO = 1/2. Tolerance 0.02: the sampler's noise at 1024 rays (about 0.01) and the wall's
+  // finite size (its ends lie 80 wall-distances away).
+  const size_t nearWall = size_t(16) * 32 + 9, far = size_t(16) * 32 + 2;
+  const double norm = std::sqrt(4 + kPi * kPi);
+  const double expect[3] = {-2 / norm, 0, kPi / norm};
+  INFO("near: bent (" << lm.bent[3 * nearWall] << ", " << lm.bent[3 * nearWall + 1] << ", " << lm.bent[3 * nearWall + 2]
+                      << "), AO " << lm.ao[nearWall]);
+  for (int c = 0; c < 3; ++c) CHECK(std::abs(lm.bent[3 * nearWall + c] - expect[c]) < 0.02);
+  CHECK(std::abs(lm.ao[nearWall] - 0.5) < 0.02);
+  // A wrong axis or sign fails: the far texel's bent normal is n.
+  CHECK(lm.bent[3 * far + 2] > 0.95);
+}
+
+TEST_CASE("Lightmap: UV checks: a missing set, non-finite UVs, overlapping charts", "[lightmap]") {
+  Mesh m;
+  addFloor(m, 1, {0, 0, 0.6, 1});
+  LightmapOptions o;
+  o.size = 16;
+  o.samples = 16;
+  o.uvSet = 1;
+  CHECK_THROWS_WITH(computeLightmap(test::runtime(), m, constantEnv(1), o),
+                    Catch::Contains("no UV set 1") && Catch::Contains("set(s) 0"));
+  o.uvSet = 0;
+  // Overlap: a second floor whose chart covers part of the first's.
+  Mesh twice = m;
+  Mesh other;
+  addFloor(other, 1, {0.4, 0, 1, 1});
+  for (float& p : other.positions) p += 5;
+  appendMesh(twice, other);
+  CHECK_THROWS_WITH(computeLightmap(test::runtime(), twice, constantEnv(1), o),
+                    Catch::Contains("UV charts overlap") && Catch::Contains("texel (") && Catch::Contains("triangle 0"));
+  // Charts side by side closer than a texel are not an overlap.
+  Mesh beside = m;
+  Mesh near;
+  addFloor(near, 1, {0.61, 0, 1, 1});
+  for (float& p : near.positions) p += 5;
+  appendMesh(beside, near);
+  const LightmapResult lm = computeLightmap(test::runtime(), beside, constantEnv(1), o);
+  CHECK(lm.contested > 0);
+  CHECK(lm.charts == 2);
+  Mesh nan = m;
+  nan.uvs[0][3] = std::nanf("");
+  CHECK_THROWS_WITH(computeLightmap(test::runtime(), nan, constantEnv(1), o),
+                    Catch::Contains("vertex 1 has a non-finite v"));
+  o.size = 1 << 20;
+  CHECK_THROWS_AS(computeLightmap(test::runtime(), m, constantEnv(1), o), UsageError);
+}
+
+TEST_CASE("Lightmap: glTF TEXCOORD_n and OBJ vt load as UV sets", "[lightmap]") {
+  const std::string dir = test::tempDir("lightmap-uv");
+  {
+    std::ofstream f(dir + "/quad.obj");
+    f << "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3\n";
+  }
+  const Mesh obj = loadMesh(dir + "/quad.obj");
+  REQUIRE(obj.hasUvSet(0));
+  CHECK(obj.uvs[0] == std::vector<float>{0, 1, 1, 1, 1, 0});  // v flipped to glTF's convention
+  {
+    std::ofstream f(dir + "/novt.obj");
+    f << "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n";
+  }
+  const Mesh novt = loadMesh(dir + "/novt.obj");
+  CHECK_FALSE(novt.hasUvSet(0));
+  // A glTF of one triangle with TEXCOORD_0 and TEXCOORD_1 (float accessors in one buffer).
+  const float data[] = {0, 0, 0, 1, 0, 0, 0, 1, 0,   // POSITION
+                        0, 0, 1, 0, 0, 1,            // TEXCOORD_0
+                        0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f};  // TEXCOORD_1
+  {
+    std::ofstream b(dir + "/tri.bin", std::ios::binary);
+    b.write(reinterpret_cast<const char*>(data), sizeof data);
+  }
+  {
+    std::ofstream f(dir + "/tri.gltf");
+    f << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2}}]}],
+      "buffers": [{"uri": "tri.bin", "byteLength": 84}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+                      {"buffer": 0, "byteOffset": 60, "byteLength": 24}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"},
+                    {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"}]})";
+  }
+  const Mesh gltf = loadMesh(dir + "/tri.gltf");
+  REQUIRE(gltf.hasUvSet(1));
+  CHECK(gltf.uvs[1] == std::vector<float>{0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f});
+  CHECK(gltf.uvs[0] == std::vector<float>{0, 0, 1, 0, 0, 1});
+}
+
+TEST_CASE("Lightmap: the command writes every output or none, and refuses bad inputs in one line", "[lightmap]") {
+  const std::string dir = test::tempDir("lightmap-cli");
+  {
+    std::ofstream f(dir + "/floor.obj");
+    f << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 1 0\n"
+         "f 1/1/1 4/4/1 3/3/1\nf 1/1/1 3/3/1 2/2/1\n";
+    std::ofstream g(dir + "/novt.obj");
+    g << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nf 1 3 2\n";
+    std::ofstream n(dir + "/nan.obj");
+    n << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nvt 0 0\nvt nan 0\nvt 1 1\nf 1/1 3/3 2/2\n";
+  }
+  const auto ok = test::runCli("lightmap '" + dir + "/floor.obj' -o '" + dir + "/out' --size 16 --samples 16 "
+                               "--products ao,bent,irradiance --format both");
+  INFO(ok.output);
+  REQUIRE(ok.exitCode == 0);
+  for (const char* f : {"ao.exr", "ao.ktx2", "ao.png", "bent.exr", "bent.ktx2", "irradiance.exr", "irradiance.ktx2",
+                        "lightmap.json"})
+    CHECK(test::fileExists(dir + "/out/" + f));
+  const ExrImage ao = readExr(dir + "/out/ao.exr");
+  REQUIRE(ao.width == 16);
+  for (float v : *ao.channel("Y")) CHECK(std::abs(v - 1.0f) < 1e-6f);  // an open floor (float: 2√π T_0)
+  for (float v : *ao.channel("A")) CHECK(v == 1.0f);
+  const nlohmann::json side = nlohmann::json::parse(std::ifstream(dir + "/out/lightmap.json"));
+  CHECK(side["texels"]["baked"] == 256);
+  struct Bad {
+    std::string args, message;
+    int status;
+  };
+  const std::vector<Bad> bad = {
+      {"'" + dir + "/novt.obj' --size 16", "has no UV set 0", 1},
+      {"'" + dir + "/nan.obj' --size 16", "non-finite", 1},
+      {"'" + dir + "/missing.obj' --size 16", "missing.obj", 1},
+      {"'" + dir + "/floor.obj' --size 0", "--size", 2},
+      {"'" + dir + "/floor.obj' --size 1048576", "--size", 2},
+      {"'" + dir + "/floor.obj' --products ao,dust", "dust", 2},
+      {"'" + dir + "/floor.obj' --max-distance 1 --products irradiance", "--max-distance", 2},
+  };
+  for (const Bad& b : bad) {
+    const std::string out = dir + "/bad";
+    const auto r = test::runCli("lightmap " + b.args + " -o '" + out + "'");
+    INFO(b.args << ": " << r.output);
+    CHECK(r.exitCode == b.status);
+    CHECK(r.output.find(b.message) != std::string::npos);
+    CHECK_FALSE(test::fileExists(out));
+  }
+}
+
+namespace {
+
+// A .gltf (external .bin) of `m` with TEXCOORD_0 = `uv0` (texture coordinates that tile and
+// overlap, as a real asset's do) and TEXCOORD_1 = m.uvs[0] (the lightmap's), one primitive,
+// uint32 indices, no material.
+std::string writeTwoUvGltf(const std::string& dir, const Mesh& m, const std::vector<float>& uv0) {
+  std::string bin;
+  auto put = [&](const void* p, size_t n) {
+    bin.append(static_cast<const char*>(p), n);
+    while (bin.size() % 4) bin.push_back('\0');
+  };
+  const size_t nv = m.vertexCount();
+  std::vector<size_t> offsets;
+  offsets.push_back(bin.size()), put(m.positions.data(), nv * 12);
+  offsets.push_back(bin.size()), put(m.normals.data(), nv * 12);
+  offsets.push_back(bin.size()), put(uv0.data(), nv * 8);
+  offsets.push_back(bin.size()), put(m.uvs[0].data(), nv * 8);
+  offsets.push_back(bin.size()), put(m.indices.data(), m.indices.size() * 4);
+  std::ofstream(dir + "/scene.bin", std::ios::binary) << bin;
+  float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+  for (size_t i = 0; i < nv * 3; ++i) lo[i % 3] = std::min(lo[i % 3], m.positions[i]), hi[i % 3] = std::max(hi[i % 3], m.positions[i]);
+  nlohmann::json j;
+  j["asset"] = {{"version", "2.0"}};
+  j["scene"] = 0;
+  j["scenes"] = {{{"nodes", {0}}}};
+  j["nodes"] = {{{"mesh", 0}}};
+  nlohmann::json prim = {{"attributes", {{"POSITION", 0}, {"NORMAL", 1}, {"TEXCOORD_0", 2}, {"TEXCOORD_1", 3}}},
+                         {"indices", 4}};
+  j["meshes"] = nlohmann::json::array({{{"primitives", nlohmann::json::array({prim})}}});
+  j["buffers"] = {{{"uri", "scene.bin"}, {"byteLength", bin.size()}}};
+  const size_t lengths[5] = {nv * 12, nv * 12, nv * 8, nv * 8, m.indices.size() * 4};
+  for (int i = 0; i < 5; ++i)
+    j["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offsets[size_t(i)]}, {"byteLength", lengths[i]},
+                                {"target", i < 4 ? 34962 : 34963}});
+  j["accessors"] = {{{"bufferView", 0}, {"componentType", 5126}, {"count", nv}, {"type", "VEC3"},
+                     {"min", {lo[0], lo[1], lo[2]}}, {"max", {hi[0], hi[1], hi[2]}}},
+                    {{"bufferView", 1}, {"componentType", 5126}, {"count", nv}, {"type", "VEC3"}},
+                    {{"bufferView", 2}, {"componentType", 5126}, {"count", nv}, {"type", "VEC2"}},
+                    {{"bufferView", 3}, {"componentType", 5126}, {"count", nv}, {"type", "VEC2"}},
+                    {{"bufferView", 4}, {"componentType", 5125}, {"count", m.indices.size()}, {"type", "SCALAR"}}};
+  std::ofstream(dir + "/scene.gltf") << j.dump(1);
+  return dir + "/scene.gltf";
+}
+
+// The page: three.js r187 (tests/js/node_modules) loads each glTF copy (__COPIES__: names of
+// NAME.glb beside the page) with its GLTFLoader and renders the floor from above (+z, orthographic
+// over [−1, 1]², W × W pixels) into a float target, linear (no tone map, no output encoding). Shot
+// "<copy>": every mesh's material replaced by a white MeshBasicMaterial carrying the copy's aoMap
+// as the loader made it (the occlusionTexture, on the UV set its texCoord names); pixel = AO. Shot
+// "light:<name>": a white MeshBasicMaterial whose lightMap is NAME.ktx2 (KTX2Loader) on uv1
+// (__LIGHT_CHANNEL__), lightMapIntensity π; pixel = the texel's E/π (three divides by π).
+// Result: per shot, the red channel of every pixel, bottom row first.
+const char* kLightmapPage = R"(<!doctype html><html><head>
+<script type="importmap">{"imports": {"three": "__THREE__/build/three.module.js", "three/addons/": "__THREE__/examples/jsm/"}}</script>
+</head><body><canvas id="c" width="__W__" height="__W__"></canvas>
+<script src="__JS__/file_fetch.js"></script>
+<script type="module">
+import * as THREE from 'three';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { KTX2Loader } from 'three/addons/loaders/KTX2Loader.js';
+let settle;
+window.result = new Promise((resolve) => { settle = resolve; });
+try {
+  const W = __W__;
+  const renderer = new THREE.WebGLRenderer({ canvas: document.getElementById('c') });
+  const target = new THREE.WebGLRenderTarget(W, W, { type: THREE.FloatType });
+  const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, 1, 100);
+  camera.position.set(0, 0, 50);
+  const shots = {};
+  const shoot = (name, scene) => {
+    renderer.setRenderTarget(target);
+    renderer.setClearColor(0x000000, 0);
+    renderer.clear();
+    renderer.render(scene, camera);
+    const px = new Float32Array(W * W * 4);
+    renderer.readRenderTargetPixels(target, 0, 0, W, W, px);
+    const red = [];
+    for (let i = 0; i < W * W; ++i) red.push(px[4 * i]);
+    shots[name] = red;
+  };
+  for (const name of __COPIES__) {
+    const gltf = await new GLTFLoader().loadAsync('./' + name + '.glb');
+    let aoMaps = 0;
+    gltf.scene.traverse((o) => {
+      if (!o.isMesh) return;
+      if (o.material.aoMap) ++aoMaps;
+      o.material = new THREE.MeshBasicMaterial({ color: 0xffffff, aoMap: o.material.aoMap });
+    });
+    if (aoMaps === 0) throw new Error(name + ': the loader made no aoMap');
+    shoot(name, gltf.scene);
+  }
+  const ktx2 = new KTX2Loader().setTranscoderPath('__THREE__/examples/jsm/libs/basis/').detectSupport(renderer);
+  const plain = await new GLTFLoader().loadAsync('./__PLAIN__.glb');
+  for (const name of __LIGHTS__) {
+    const map = await ktx2.loadAsync('./' + name + '.ktx2');
+    map.channel = __LIGHT_CHANNEL__;
+    map.minFilter = THREE.LinearFilter;
+    map.magFilter = THREE.LinearFilter;
+    map.generateMipmaps = false;
+    map.flipY = false;
+    const scene = plain.scene.clone();
+    scene.traverse((o) => {
+      if (o.isMesh) o.material = new THREE.MeshBasicMaterial({ color: 0xffffff, lightMap: map, lightMapIntensity: Math.PI });
+    });
+    shoot('light:' + name, scene);
+  }
+  settle('RESULT ' + JSON.stringify({ shots }));
+} catch (e) { settle('ERROR ' + e + ' ' + e.stack); }
+</script></body></html>
+)";
+
+// Bilinear lookup of a W × W plane (c floats per texel, channel ch) at (u, v), texel centres at
+// ((x + ½)/W, (y + ½)/W), clamped at the edges: what a GPU's linear filter computes.
+double bilinear(const std::vector<float>& plane, int W, int c, int ch, double u, double v) {
+  const double s = u * W - 0.5, t = v * W - 0.5;
+  const int x0 = int(std::floor(s)), y0 = int(std::floor(t));
+  const double fx = s - x0, fy = t - y0;
+  auto at = [&](int x, int y) {
+    x = std::clamp(x, 0, W - 1), y = std::clamp(y, 0, W - 1);
+    return double(plane[(size_t(y) * W + x) * c + ch]);
+  };
+  return (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x0 + 1, y0)) + fy * ((1 - fx) * at(x0, y0 + 1) + fx * at(x0 + 1, y0 + 1));
+}
+
+}  // namespace
+
+TEST_CASE("Lightmap: three.js renders the glTF copy's AO and the irradiance lightmap on uv1 as prtbake samples them",
+          "[lightmap][engines][chromium]") {
+  // The wall scene of the leak test as a real glTF: TEXCOORD_0 tiles the floor 4 times and gives
+  // every face of the wall the whole square (overlapping: a texture's UVs), TEXCOORD_1 is the
+  // lightmap's. Baked through the library, written by the command's writers.
+  Mesh m;
+  addQuad(m, std::array<Vec3, 4>{Vec3{-1, -1, 0}, Vec3{1, -1, 0}, Vec3{1, 1, 0}, Vec3{-1, 1, 0}}.data(), {0, 0, 1, 0.5});
+  addBox(m, {0.04, -0.5, -0.05}, {0.135, 0.7, 0.6}, {0, 0.6, 1, 0.9});
+  std::vector<float> uv0;
+  for (size_t v = 0; v < m.vertexCount(); ++v) {
+    const bool floor = v < 4;
+    uv0.push_back(floor ? 2 * (m.positions[3 * v] + 1) : float((v % 4 == 1 || v % 4 == 2) ? 1 : 0));
+    uv0.push_back(floor ? 2 * (1 - m.positions[3 * v + 1]) : float(v % 4 >= 2 ? 0 : 1));
+  }
+  const std::string dir = test::tempDir("lightmap_threejs");
+  const std::string input = writeTwoUvGltf(dir, m, uv0);
+  const Mesh mesh = loadMesh(input);
+  REQUIRE(mesh.hasUvSet(1));
+  // glTF-Validator: the copy has no issue of any severity (seen failing: occlusionTexture's
+  // texCoord 2, which no primitive has: MATERIAL_... error).
+  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
+  PRTBAKE_CHROMIUM_OR_SKIP(chromium, "three.js");
+  // An environment brighter above than below (l_0 and l_{1,0} along +z), so that irradiance is
+  // not a multiple of the AO: L(ω) = 0.55 + 0.35 ω_z, E/π between 0 and 0.9.
+  ShCoeffs env;
+  env.order = 2;
+  env.rgb.assign(4, Rgb{0, 0, 0});
+  const double c0 = 0.55 * std::sqrt(4 * kPi), c1 = 0.35 * std::sqrt(4 * kPi / 3);
+  env.rgb[0] = Rgb{c0, c0, c0};
+  double y[4];
+  shEval(2, 0, 0, 1, y);
+  env.rgb[2] = Rgb{c1 * y[2] / std::abs(y[2]), c1 * y[2] / std::abs(y[2]), c1 * y[2] / std::abs(y[2])};
+  LightmapOptions o;
+  o.size = 64;
+  o.samples = 256;
+  o.products = kLightmapAo | kLightmapIrradiance;
+  LightmapResult lm = computeLightmap(test::runtime(), mesh, env, o);
+  REQUIRE(lm.uvSet == 1);
+  // The copies: prtbake's, the AO flipped vertically (an exporter's bottom-up rows), and one whose
+  // occlusionTexture names TEXCOORD_0.
+  std::ofstream(dir + "/good.glb", std::ios::binary) << lightmapGltfBytes(dir + "/good.glb", mesh, lm);
+  LightmapResult flipped = lm;
+  for (int yy = 0; yy < lm.height; ++yy)
+    for (int x = 0; x < lm.width; ++x) {
+      flipped.ao[size_t(yy) * lm.width + x] = lm.ao[size_t(lm.height - 1 - yy) * lm.width + x];
+      for (int c = 0; c < 3; ++c)
+        flipped.irradiance[3 * (size_t(yy) * lm.width + x) + c] = lm.irradiance[3 * (size_t(lm.height - 1 - yy) * lm.width + x) + c];
+    }
+  std::ofstream(dir + "/v_flipped.glb", std::ios::binary) << lightmapGltfBytes(dir + "/v_flipped.glb", mesh, flipped);
+  LightmapResult wrongSet = lm;
+  wrongSet.uvSet = 0;
+  std::ofstream(dir + "/uv0.glb", std::ios::binary) << lightmapGltfBytes(dir + "/uv0.glb", mesh, wrongSet);
+  std::ofstream(dir + "/irradiance.ktx2", std::ios::binary) << lightmapKtx2Bytes(lm, kLightmapIrradiance);
+  std::ofstream(dir + "/irradiance_flipped.ktx2", std::ios::binary) << lightmapKtx2Bytes(flipped, kLightmapIrradiance);
+  {
+    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + dir + "/good.glb'");
+    INFO(r.output.substr(0, 3000));
+    REQUIRE(r.exitCode == 0);
+    const nlohmann::json rep = nlohmann::json::parse(r.output);
+    CHECK(rep["errors"] == 0);
+    CHECK(rep["warnings"] == 0);
+  }
+  const int W = 192;
+  const std::string page = dir + "/lightmap.html";
+  auto render = [&](int lightChannel) {
+    std::ofstream(page) << test::fillPage(kLightmapPage, {{"__THREE__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/three"},
+                                                          {"__JS__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js"},
+                                                          {"__W__", std::to_string(W)},
+                                                          {"__COPIES__", lightChannel == 1 ? R"(["good", "v_flipped", "uv0"])" : "[]"},
+                                                          {"__PLAIN__", "good"},
+                                                          {"__LIGHTS__", lightChannel == 1 ? R"(["irradiance", "irradiance_flipped"])" : R"(["irradiance"])"},
+                                                          {"__LIGHT_CHANNEL__", std::to_string(lightChannel)}});
+    return test::chromiumResult(chromium, page)["shots"];
+  };
+  const nlohmann::json shots = render(1), wrongChannel = render(0);
+  // prtbake's side: the floor point under each pixel's centre, its lightmap UV (the floor quad maps
+  // x ∈ [−1, 1] to u ∈ [0, 1] and y ∈ [1, −1] to v ∈ [0, 0.5]), the maps sampled bilinearly.
+  // Pixels over the wall's top (and one pixel around it) are left out.
+  auto mean = [&](const nlohmann::json& red, const std::vector<float>& plane, int c, double scale) {
+    double sum = 0;
+    int n = 0;
+    for (int py = 0; py < W; ++py)
+      for (int px = 0; px < W; ++px) {
+        const double x = -1 + 2 * (px + 0.5) / W, yw = -1 + 2 * (py + 0.5) / W;
+        if (x > 0.04 - 2.0 / W && x < 0.135 + 2.0 / W && yw > -0.5 - 2.0 / W && yw < 0.7 + 2.0 / W) continue;
+        const double u = (x + 1) / 2, v = 0.5 * (1 - yw) / 2;
+        const double want = scale * bilinear(plane, lm.width, c, 0, u, v);
+        sum += 255 * std::abs(red[size_t(py) * W + px].get<double>() - want);
+        ++n;
+      }
+    return sum / n;
+  };
+  const double ao = mean(shots["good"], lm.ao, 1, 1), aoFlipped = mean(shots["v_flipped"], lm.ao, 1, 1),
+               aoUv0 = mean(shots["uv0"], lm.ao, 1, 1);
+  const double light = mean(shots["light:irradiance"], lm.irradiance, 3, 1),
+               lightFlipped = mean(shots["light:irradiance_flipped"], lm.irradiance, 3, 1),
+               lightUv0 = mean(wrongChannel["light:irradiance"], lm.irradiance, 3, 1);
+  // Acceptance: mean |Δ| ≤ 2 linear 8-bit levels (the AO's PNG is 8-bit: ≤ 0.5 of that is its
+  // rounding; the irradiance's KTX2 is half float; the GPU's filter weights are 8-bit fixed point).
+  INFO("mean |delta| (linear 8-bit levels): AO " << ao << " (V flipped " << aoFlipped << ", TEXCOORD_0 " << aoUv0
+                                                << "); irradiance " << light << " (V flipped " << lightFlipped
+                                                << ", uv0 " << lightUv0 << ")");
+  CHECK(ao <= 2.0);
+  CHECK(light <= 2.0);
+  CHECK(aoFlipped > 2.0);
+  CHECK(aoUv0 > 2.0);
+  CHECK(lightFlipped > 2.0);
+  CHECK(lightUv0 > 2.0);
+}
