@@ -31,6 +31,7 @@ LightmapOptions lightmapOptionsFrom(const json& p) {
   }
   o.dilation = p["dilation"].get<int>();
   o.unocclude = !p["no_unocclude"].get<bool>();
+  o.stitchSeams = !p["no_stitch"].get<bool>();
   return o;
 }
 
@@ -105,6 +106,7 @@ JobType lightmapJobType() {
             number("albedo", nullptr, 0.0, 1.0, "a grey albedo for every vertex, overriding the file's (bounces)"),
             integer("dilation", 8, 0, 4096, "rings of texels filled around the charts for bilinear and mip lookups (0: none)"),
             boolean("no_unocclude", "keep samples that lie inside closed geometry where they are (marked buried only)"),
+            boolean("no_stitch", "leave the UV seams as baked (no least-squares stitching)"),
             boolean("half", "OpenEXR outputs in 16-bit half instead of float"),
             integer("png_bits", 8, 8, 16, "bits per sample of the AO's PNG (8 or 16)"),
             {"env", ValueKind::Path, nullptr, 0, 0, {},

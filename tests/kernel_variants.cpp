@@ -56,6 +56,7 @@ int main() {
   for (int order : {2, 3})
     for (int env = order; env <= kMaxTransportOrder; ++env)
       for (int packet : {0, 16}) print("probes.cl", detail::probesOptions(order, env, packet));
+  print("lightmap.cl", "");
   print("sh_eval.cl", "");
   return 0;
 }

@@ -22,7 +22,10 @@
 // "unocclude": the texel's own area reaches outside); one that finds no way out that near
 // and sees a back face along its normal is marked buried (baked there: dark). Empty texels within `dilation`
 // texels of baked ones take their neighbours' mean, ring by ring, so that bilinear and mip
-// lookups near a chart's edge read no unbaked texel.
+// lookups near a chart's edge read no unbaked texel. Then the seams are stitched: where one
+// edge of the surface lies on two UV edges, the texels both sides read are adjusted in the
+// least-squares sense (the data held near its values, the bilinear lookups of the two sides
+// along the seam made to agree), so that no seam shows.
 #pragma once
 
 #include <array>
@@ -66,6 +69,7 @@ struct LightmapOptions {
   std::optional<std::array<float, 3>> albedoOverride;
   int dilation = 8;            // rings of texels filled around the charts (0: none)
   bool unocclude = true;       // move samples out of closed geometry
+  bool stitchSeams = true;     // least-squares agreement of the two sides of every UV seam
   int packetWidth = 16;        // the transport kernels' packet width (0: one ray at a time)
 };
 
@@ -85,6 +89,8 @@ struct LightmapResult {
   size_t centreOutside = 0;         // baked texels whose centre no triangle contains
   size_t charts = 0, degenerateTriangles = 0;
   size_t contested = 0;             // texels touched by two charts (none contains the centre)
+  size_t seamEdges = 0;             // surface edges whose sides lie on different UV edges
+  double seamJumpBefore = 0, seamJumpAfter = 0;  // the largest jump across them (first product)
   int samples = 0;
   uint64_t rays = 0;
   double maxStdError = 0, meanStdError = 0;  // the transport's standard error of the AO pass

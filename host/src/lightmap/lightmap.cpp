@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <numeric>
 #include <unordered_map>
 
@@ -311,6 +312,129 @@ void dilate(LightmapResult& lm, int rings, const std::vector<std::vector<float>*
   }
 }
 
+// Seam stitching (least squares, as in the seam-erasure write-ups: Liu, Ferguson and Jacobson's
+// "Seamless", Sloan's "stitching lightmaps"). A seam is an edge of the surface (two triangles
+// sharing both endpoints in space) whose two sides lie on different UV edges. Along it, at
+// points t_k every half texel, the bilinear lookups of the two sides should agree:
+//   minimise Σ_k (B_A(t_k) x − B_B(t_k) x)² + Σ_i λ_i (x_i − x0_i)²,
+// x the texels that any lookup reads (B: the 4 bilinear weights at the UV of t_k on that side),
+// x0 their baked values, λ_i = kSeamDataWeight for a texel with a valid sample (the data holds
+// it near its value) and kSeamFreeWeight for the others (dilated: free to follow). The normal
+// equations (SᵀS + Λ) x = Λ x0 are solved per channel by conjugate gradients. Returns the seam
+// edges found and the worst jump across them before and after (in the first plane's units).
+struct SeamStats {
+  size_t edges = 0;
+  double jumpBefore = 0, jumpAfter = 0;
+};
+constexpr double kSeamDataWeight = 0.1, kSeamFreeWeight = 1e-3;
+
+SeamStats stitchSeams(const Mesh& mesh, const std::vector<float>& uv, const std::vector<char>& usable, LightmapResult& lm,
+                      const std::vector<std::vector<float>*>& planes, const std::vector<int>& widths) {
+  SeamStats st;
+  const int W = lm.width, H = lm.height;
+  struct Side {
+    uint32_t tri;
+    float uv0[2], uv1[2];  // the UVs at the edge's first and second endpoint (in position order)
+  };
+  std::map<std::array<float, 6>, std::vector<Side>> edges;
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    if (!usable[t]) continue;
+    for (int e = 0; e < 3; ++e) {
+      uint32_t i = mesh.indices[3 * t + e], j = mesh.indices[3 * t + (e + 1) % 3];
+      std::array<float, 3> pi{mesh.positions[3 * i], mesh.positions[3 * i + 1], mesh.positions[3 * i + 2]};
+      std::array<float, 3> pj{mesh.positions[3 * j], mesh.positions[3 * j + 1], mesh.positions[3 * j + 2]};
+      if (pj < pi) std::swap(pi, pj), std::swap(i, j);
+      edges[{pi[0], pi[1], pi[2], pj[0], pj[1], pj[2]}].push_back(
+          {uint32_t(t), {uv[2 * i], uv[2 * i + 1]}, {uv[2 * j], uv[2 * j + 1]}});
+    }
+  }
+  // The constraints: per sample point, 4 (texel, weight) of side A and 4 of side B (weight negated).
+  struct Tap {
+    uint32_t texel;
+    double w;
+  };
+  std::vector<std::array<Tap, 8>> rows;
+  auto taps = [&](double u, double v, double sign, Tap* out) {
+    const double s = u * W - 0.5, t = v * H - 0.5;
+    const int x0 = int(std::floor(s)), y0 = int(std::floor(t));
+    const double fx = s - x0, fy = t - y0;
+    int k = 0;
+    for (int dy = 0; dy < 2; ++dy)
+      for (int dx = 0; dx < 2; ++dx) {
+        const int x = std::clamp(x0 + dx, 0, W - 1), y = std::clamp(y0 + dy, 0, H - 1);
+        out[k++] = {uint32_t(size_t(y) * W + x), sign * (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy)};
+      }
+  };
+  for (const auto& [key, sides] : edges) {
+    if (sides.size() != 2) continue;
+    const Side& a = sides[0];
+    const Side& b = sides[1];
+    if (std::memcmp(a.uv0, b.uv0, 8) == 0 && std::memcmp(a.uv1, b.uv1, 8) == 0) continue;  // one chart's inside edge
+    ++st.edges;
+    const double lenA = std::hypot((a.uv1[0] - a.uv0[0]) * W, (a.uv1[1] - a.uv0[1]) * H);
+    const double lenB = std::hypot((b.uv1[0] - b.uv0[0]) * W, (b.uv1[1] - b.uv0[1]) * H);
+    const int k = std::max(2, int(std::ceil(2 * std::max(lenA, lenB))));
+    for (int q = 0; q < k; ++q) {
+      const double t = (q + 0.5) / k;
+      std::array<Tap, 8> row;
+      taps(a.uv0[0] + t * (a.uv1[0] - a.uv0[0]), a.uv0[1] + t * (a.uv1[1] - a.uv0[1]), 1, &row[0]);
+      taps(b.uv0[0] + t * (b.uv1[0] - b.uv0[0]), b.uv0[1] + t * (b.uv1[1] - b.uv0[1]), -1, &row[4]);
+      rows.push_back(row);
+    }
+  }
+  if (rows.empty() || planes.empty()) return st;
+  // The unknowns: every texel a constraint reads, numbered.
+  std::unordered_map<uint32_t, uint32_t> index;
+  std::vector<uint32_t> texel;
+  for (const auto& row : rows)
+    for (const Tap& tp : row)
+      if (index.emplace(tp.texel, uint32_t(texel.size())).second) texel.push_back(tp.texel);
+  const size_t n = texel.size();
+  std::vector<double> lambda(n);
+  for (size_t i = 0; i < n; ++i) lambda[i] = lm.valid(texel[i]) ? kSeamDataWeight : kSeamFreeWeight;
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {  // y = (SᵀS + Λ) x
+    for (size_t i = 0; i < n; ++i) y[i] = lambda[i] * x[i];
+    for (const auto& row : rows) {
+      double r = 0;
+      for (const Tap& tp : row) r += tp.w * x[index[tp.texel]];
+      for (const Tap& tp : row) y[index[tp.texel]] += tp.w * r;
+    }
+  };
+  auto worstJump = [&](const std::vector<float>& plane, int width) {
+    double worst = 0;
+    for (const auto& row : rows) {
+      double r = 0;
+      for (const Tap& tp : row) r += tp.w * plane[size_t(tp.texel) * width];
+      worst = std::max(worst, std::abs(r));
+    }
+    return worst;
+  };
+  st.jumpBefore = worstJump(*planes[0], widths[0]);
+  std::vector<double> x(n), b(n), r(n), p(n), ap(n);
+  for (size_t pl = 0; pl < planes.size(); ++pl)
+    for (int c = 0; c < widths[pl]; ++c) {
+      std::vector<float>& plane = *planes[pl];
+      const size_t w = size_t(widths[pl]);
+      for (size_t i = 0; i < n; ++i) x[i] = plane[texel[i] * w + c], b[i] = lambda[i] * x[i];
+      apply(x, ap);
+      double rr = 0, bb = 0;
+      for (size_t i = 0; i < n; ++i) r[i] = b[i] - ap[i], p[i] = r[i], rr += r[i] * r[i], bb += b[i] * b[i];
+      for (int it = 0; it < 1000 && rr > 1e-20 * std::max(bb, 1e-30); ++it) {
+        apply(p, ap);
+        double pap = 0;
+        for (size_t i = 0; i < n; ++i) pap += p[i] * ap[i];
+        const double alpha = rr / pap;
+        double next = 0;
+        for (size_t i = 0; i < n; ++i) x[i] += alpha * p[i], r[i] -= alpha * ap[i], next += r[i] * r[i];
+        for (size_t i = 0; i < n; ++i) p[i] = r[i] + next / rr * p[i];
+        rr = next;
+      }
+      for (size_t i = 0; i < n; ++i) plane[texel[i] * w + c] = float(x[i]);
+    }
+  st.jumpAfter = worstJump(*planes[0], widths[0]);
+  return st;
+}
+
 }  // namespace
 
 unsigned parseLightmapProducts(const std::string& list) {
@@ -542,14 +666,17 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   add(lm.irradiance, 3);
   add(lm.transport, lm.transportChannels * lm.order * lm.order);
   dilate(lm, o.dilation, planes, widths);
-  // Dilated bent normals are means of unit vectors: renormalised.
-  for (size_t i = 0; !lm.bent.empty() && i < lm.texels(); ++i)
-    if (TexelState(lm.state[i]) == TexelState::Dilated) {
-      float* b = &lm.bent[3 * i];
-      const double len = std::sqrt(double(b[0]) * b[0] + double(b[1]) * b[1] + double(b[2]) * b[2]);
-      if (len > 0)
-        for (int c = 0; c < 3; ++c) b[c] = float(b[c] / len);
-    }
+  if (o.stitchSeams) {
+    const SeamStats seams = stitchSeams(mesh, uv, usable, lm, planes, widths);
+    lm.seamEdges = seams.edges, lm.seamJumpBefore = seams.jumpBefore, lm.seamJumpAfter = seams.jumpAfter;
+  }
+  // Dilated and stitched bent normals are means of unit vectors: renormalised.
+  for (size_t i = 0; !lm.bent.empty() && i < lm.texels(); ++i) {
+    float* b = &lm.bent[3 * i];
+    const double len = std::sqrt(double(b[0]) * b[0] + double(b[1]) * b[1] + double(b[2]) * b[2]);
+    if (len > 0)
+      for (int c = 0; c < 3; ++c) b[c] = float(b[c] / len);
+  }
   lm.repairSeconds = secondsSince(tRepair);
   lm.totalSeconds = secondsSince(tStart);
   return lm;

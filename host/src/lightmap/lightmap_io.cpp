@@ -176,7 +176,8 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
   j["input"] = {{"path", inputPath}};
   j["parameters"] = {{"products", lightmapProductsName(lm.products)}, {"uv_set", lm.uvSet}, {"size", lm.width},
                      {"samples", o.samples}, {"seed", o.seed}, {"order", lm.order}, {"bounces", o.bounces},
-                     {"max_distance", o.maxDistance}, {"dilation", o.dilation}, {"unocclude", o.unocclude}};
+                     {"max_distance", o.maxDistance}, {"dilation", o.dilation}, {"unocclude", o.unocclude},
+                     {"stitch_seams", o.stitchSeams}};
   if (o.tolerance > 0) j["parameters"]["tolerance"] = o.tolerance;
   j["conventions"] = {
       {"texel", "texel (x, y) covers u in [x, x+1]/W, v in [y, y+1]/H; row 0 at v = 0 (glTF: the image's top)"},
@@ -191,6 +192,10 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
                  {"empty", lm.texels() - lm.baked - lm.moved - lm.buried - lm.dilated},
                  {"centre_outside_triangle", lm.centreOutside}, {"touched_by_two_charts", lm.contested}};
   j["mesh"] = {{"charts", lm.charts}, {"degenerate_triangles", lm.degenerateTriangles}};
+  j["seams"] = {{"edges", lm.seamEdges}, {"stitched", o.stitchSeams}, {"largest_jump_before", lm.seamJumpBefore},
+                {"largest_jump_after", lm.seamJumpAfter},
+                {"meaning", "the largest difference of the two sides' bilinear lookups along a seam, in the first "
+                            "product's units (ao, bent x, irradiance r or T0)"}};
   j["samples"] = {{"per_texel", lm.samples}, {"rays", lm.rays}};
   j["error"] = {{"max_std_error", lm.maxStdError}, {"mean_std_error", lm.meanStdError},
                 {"meaning", "standard error of the transport's coefficient vector (the AO pass when asked for); "
