@@ -30,6 +30,7 @@
 #include "prtbake/progress.h"
 #include "prtbake/runtime.h"
 #include "prtbake/sh_rotate.h"
+#include "prtbake/lightmap.h"
 #include "prtbake/probes.h"
 #include "prtbake/transport.h"
 #include "confine.h"
@@ -218,7 +219,7 @@ std::vector<float> rows3(const py::object& v, const char* name, py::ssize_t rows
 // A mesh from arrays (read once into the library's layout; float32 C-order arrays are copied
 // as they are, others converted).
 std::shared_ptr<Mesh> meshFromArrays(const py::object& positions, const py::object& indices, const py::object& normals,
-                                     const py::object& albedo) {
+                                     const py::object& albedo, const py::object& uvs) {
   auto mesh = std::make_shared<Mesh>();
   mesh->positions = rows3(positions, "positions", -1);
   const py::ssize_t nv = py::ssize_t(mesh->positions.size() / 3);
@@ -237,6 +238,15 @@ std::shared_ptr<Mesh> meshFromArrays(const py::object& positions, const py::obje
   }
   mesh->normals = normals.is_none() ? std::vector<float>(size_t(3 * nv), 0.0f) : rows3(normals, "normals", nv);
   mesh->albedo = albedo.is_none() ? std::vector<float>(size_t(3 * nv), 1.0f) : rows3(albedo, "albedo", nv);
+  if (!uvs.is_none()) {  // a sequence of (V, 2) arrays: UV set 0, 1, … (glTF's convention: v down)
+    for (const py::handle set : uvs) {
+      const FloatArray a = FloatArray::ensure(set);
+      if (!a || a.ndim() != 2 || a.shape(1) != 2 || a.shape(0) != nv)
+        throw UsageError("uvs", "each UV set must be a (" + std::to_string(nv) + ", 2) array");
+      mesh->uvs.emplace_back(a.data(), a.data() + a.size());
+      mesh->uvMissing.emplace_back();
+    }
+  }
   py::gil_scoped_release nogil;
   fillMissingNormals(*mesh);
   validateMesh(*mesh, "mesh arrays");
@@ -375,10 +385,59 @@ py::object transportProduct(const py::object& meshObj, const py::kwargs& kw) {
   return result("TransportResult", f);
 }
 
+// env of probes and lightmap: the key's path (an SH JSON or a map), or radiance coefficients as an
+// (n², 3) array (or an EnvResult).
+bool envIsArray(const py::kwargs& kw) {
+  return kw.contains("env") && !kw["env"].is_none() && !py::isinstance<py::str>(kw["env"]) && !py::hasattr(kw["env"], "__fspath__");
+}
+
+py::object lightmapProduct(const py::object& meshObj, const py::kwargs& kw) {
+  const bool envArray = envIsArray(kw);
+  std::vector<std::string> own = {"device", "progress"};
+  if (envArray) own.push_back("env");
+  const json p = paramsOf("lightmap", kw, {{"json", "-"}}, own);
+  const LightmapOptions o = jobs::lightmapOptionsFrom(p);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::string spec = deviceOf(kw);
+  ShCoeffs env;
+  if (envArray) {
+    const py::object e = kw["env"];
+    env = shFromArray(py::hasattr(e, "coeffs") ? py::object(e.attr("coeffs")) : e);
+  }
+  LightmapResult r;
+  ProgressScope scope(pythonHook(progressOf(kw)));
+  {
+    py::gil_scoped_release nogil;
+    Device d = device(spec);
+    if (!envArray) env = jobs::probeEnvironment(p, [&]() -> Runtime& { return d.rt; }, nullptr);
+    r = computeLightmap(d.rt, *mesh, env, o);
+  }
+  const py::ssize_t h = r.height, w = r.width, nc = py::ssize_t(r.order) * r.order;
+  py::dict f;
+  f["ao"] = r.ao.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.ao), {h, w}));
+  f["bent"] = r.bent.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.bent), {h, w, 3}));
+  f["irradiance"] = r.irradiance.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.irradiance), {h, w, 3}));
+  f["transport"] = r.transport.empty() ? py::object(py::none())
+                   : r.transportChannels == 1 ? py::object(adopt(std::move(r.transport), {h, w, nc}))
+                                              : py::object(adopt(std::move(r.transport), {h, w, 3, nc}));
+  f["state"] = adopt(std::move(r.state), {h, w});
+  f["uv_set"] = r.uvSet;
+  f["order"] = r.order;
+  f["baked"] = r.baked;
+  f["moved"] = r.moved;
+  f["buried"] = r.buried;
+  f["dilated"] = r.dilated;
+  f["charts"] = r.charts;
+  f["seam_edges"] = r.seamEdges;
+  f["samples"] = r.samples;
+  f["rays"] = r.rays;
+  f["seconds"] = r.totalSeconds;
+  f["device"] = r.device;
+  return result("LightmapResult", f);
+}
+
 py::object probesProduct(const py::object& meshObj, const py::kwargs& kw) {
-  // env: the key's path (an SH JSON or a map), or radiance coefficients as an (n², 3) array.
-  const bool envArray = kw.contains("env") && !kw["env"].is_none() && !py::isinstance<py::str>(kw["env"]) &&
-                        !py::hasattr(kw["env"], "__fspath__");
+  const bool envArray = envIsArray(kw);
   std::vector<std::string> own = {"device", "progress"};
   if (envArray) own.push_back("env");
   const json p = paramsOf("probes", kw, {{"npy", "-"}}, own);
@@ -809,7 +868,7 @@ PYBIND11_MODULE(_prtbake, m) {
 
   py::class_<Mesh, std::shared_ptr<Mesh>>(m, "Mesh")
       .def(py::init(&meshFromArrays), py::arg("positions"), py::arg("indices"), py::arg("normals") = py::none(),
-           py::arg("albedo") = py::none())
+           py::arg("albedo") = py::none(), py::arg("uvs") = py::none())
       .def_static(
           "load", [](const py::object& file) {
             if (!isPath(file)) throw UsageError("path", "must be a path");
@@ -822,6 +881,12 @@ PYBIND11_MODULE(_prtbake, m) {
       .def_property_readonly("normals", [](py::object self) { return meshView(self, self.cast<Mesh&>().normals); })
       .def_property_readonly("albedo", [](py::object self) { return meshView(self, self.cast<Mesh&>().albedo); })
       .def_property_readonly("indices", [](py::object self) { return meshView(self, self.cast<Mesh&>().indices); })
+      .def_property_readonly("uv_sets", [](const Mesh& mesh) {
+        py::list sets;
+        for (size_t k = 0; k < mesh.uvs.size(); ++k)
+          if (!mesh.uvs[k].empty()) sets.append(k);
+        return sets;
+      })
       .def_property_readonly("vertex_count", &Mesh::vertexCount)
       .def_property_readonly("triangle_count", &Mesh::triangleCount)
       .def_property_readonly("source", [](const Mesh& mesh) { return mesh.sourcePath; })
@@ -838,6 +903,7 @@ PYBIND11_MODULE(_prtbake, m) {
   m.def("transport", &transportProduct, py::arg("mesh"));
   m.def("glossy", &glossyProduct, py::arg("mesh"));
   m.def("probes", &probesProduct, py::arg("scene"));
+  m.def("lightmap", &lightmapProduct, py::arg("mesh"));
   m.def("lut", &lutProduct);
   m.def("prefilter", &prefilterProduct, py::arg("source"));
   m.def("ibl", &iblProduct, py::arg("source"), py::arg("out_dir"));
@@ -867,7 +933,7 @@ PYBIND11_MODULE(_prtbake, m) {
       return "";
     };
     py::dict out;
-    for (const char* name : {"env", "transport", "glossy", "lut", "prefilter", "ibl", "probes"}) {
+    for (const char* name : {"env", "transport", "glossy", "lut", "prefilter", "ibl", "probes", "lightmap"}) {
       const jobs::JobType* t = jobs::findJobType(name);
       py::list keys;
       for (const auto& k : t->keys)

@@ -29,10 +29,10 @@ from . import _prtbake
 from ._prtbake import (DeviceError, Error, InputError, Mesh, OutputError, __version__, devices, preview_env,
                        preview_lut, preview_mesh, preview_prefilter, read_exr, rotate, run)
 
-__all__ = ["env", "rotate", "transport", "glossy", "lut", "prefilter", "ibl", "probes", "run", "devices", "read_exr",
+__all__ = ["env", "rotate", "transport", "glossy", "lut", "prefilter", "ibl", "probes", "lightmap", "run", "devices", "read_exr",
            "preview_env", "preview_mesh", "preview_lut", "preview_prefilter",
            "keywords", "Mesh", "Error", "InputError", "DeviceError", "OutputError", "EnvResult",
-           "TransportResult", "GlossyResult", "LutResult", "PrefilterResult", "IblResult", "ProbeGridResult",
+           "TransportResult", "GlossyResult", "LutResult", "PrefilterResult", "IblResult", "ProbeGridResult", "LightmapResult",
            "RunResult"]
 
 
@@ -124,6 +124,27 @@ class PrefilterResult(_Result):
     device: str
 
 
+class LightmapResult(_Result):
+    """A lightmap (docs/lightmap.md): per-texel products on the mesh's UV set, row 0 at v = 0."""
+    ao: Optional[_np.ndarray]          # (H, W) float32, cosine-weighted visibility (None: not asked for)
+    bent: Optional[_np.ndarray]        # (H, W, 3) float32, unit bent normals, object space
+    irradiance: Optional[_np.ndarray]  # (H, W, 3) float32, E/pi, linear RGB
+    transport: Optional[_np.ndarray]   # (H, W, n²) or (H, W, 3, n²) float32, per-texel PRT transport
+    state: _np.ndarray                 # (H, W) uint8: 0 empty, 1 baked, 2 moved, 3 buried, 4 dilated
+    uv_set: int
+    order: int
+    baked: int
+    moved: int
+    buried: int
+    dilated: int
+    charts: int
+    seam_edges: int
+    samples: int
+    rays: int
+    seconds: float
+    device: str
+
+
 class ProbeGridResult(_Result):
     """A light probe grid (docs/probes.md): radiance SH at each probe, probes at cell centres."""
     coeffs: _np.ndarray            # (NZ, NY, NX, n², 3) float32, linear RGB radiance coefficients
@@ -182,6 +203,9 @@ _SUMMARY = {
     "probes": ("scene", "A light probe grid: radiance SH at points in space, for moving objects.\n\n"
                "scene: a prtbake.Mesh or a mesh file. env: an SH JSON or environment map path, or radiance\n"
                "coefficients as an (n², 3) array (an EnvResult's coeffs). Returns ProbeGridResult."),
+    "lightmap": ("mesh", "Per-texel AO, bent normals, irradiance and transport on a mesh's lightmap UVs.\n\n"
+                 "mesh: a prtbake.Mesh (with uvs) or a mesh file. env: an SH JSON or environment map path, or\n"
+                 "radiance coefficients as an (n², 3) array. Returns LightmapResult."),
     "ibl": ("source", "Engine lighting packages (three.js, Filament, Babylon.js, glTF) written to out_dir,\n"
             "which appears whole or not at all. Returns IblResult."),
 }
@@ -222,3 +246,4 @@ lut = _product("lut")
 prefilter = _product("prefilter")
 ibl = _product("ibl")
 probes = _product("probes")
+lightmap = _product("lightmap")

@@ -46,20 +46,21 @@ def stubs() -> str:
         "",
         "class Mesh:",
         "    def __init__(self, positions: ArrayLike, indices: ArrayLike, normals: Optional[ArrayLike] = None,",
-        "                 albedo: Optional[ArrayLike] = None) -> None: ...",
+        "                 albedo: Optional[ArrayLike] = None, uvs: Optional[Sequence[ArrayLike]] = None) -> None: ...",
         "    @staticmethod",
         "    def load(path: StrPath) -> Mesh: ...",
         "    positions: NDArray[np.float32]",
         "    normals: NDArray[np.float32]",
         "    albedo: NDArray[np.float32]",
         "    indices: NDArray[np.uint32]",
+        "    uv_sets: List[int]",
         "    vertex_count: int",
         "    triangle_count: int",
         "    source: str",
         "",
     ]
     for cls in (prtbake.EnvResult, prtbake.TransportResult, prtbake.GlossyResult, prtbake.LutResult,
-                prtbake.PrefilterResult, prtbake.IblResult, prtbake.ProbeGridResult, prtbake.RunResult):
+                prtbake.PrefilterResult, prtbake.IblResult, prtbake.ProbeGridResult, prtbake.LightmapResult, prtbake.RunResult):
         out.append("class %s:" % cls.__name__)
         for name, t in cls.__annotations__.items():
             t = t.replace("_np.ndarray", "NDArray[Any]")
@@ -69,13 +70,14 @@ def stubs() -> str:
               "glossy": ["mesh: Union[Mesh, StrPath]"], "lut": [],
               "prefilter": ["source: Union[StrPath, ArrayLike]"],
               "ibl": ["source: Union[StrPath, ArrayLike]", "out_dir: StrPath"],
-              "probes": ["scene: Union[Mesh, StrPath]"]}
+              "probes": ["scene: Union[Mesh, StrPath]"], "lightmap": ["mesh: Union[Mesh, StrPath]"]}
     results = {"env": "EnvResult", "transport": "TransportResult", "glossy": "GlossyResult", "lut": "LutResult",
-               "prefilter": "PrefilterResult", "ibl": "IblResult", "probes": "ProbeGridResult"}
+               "prefilter": "PrefilterResult", "ibl": "IblResult", "probes": "ProbeGridResult",
+               "lightmap": "LightmapResult"}
     for product, keys in prtbake.keywords().items():
         args = list(firsts[product]) + ["*"]
         for key, kind, default, values, _meaning in keys:
-            t = "Union[StrPath, ArrayLike, None]" if (product, key) == ("probes", "env") else _type(kind, default, values)
+            t = "Union[StrPath, ArrayLike, None]" if key == "env" and product in ("probes", "lightmap") else _type(kind, default, values)
             args.append("%s: %s = %s" % (key, t, _default(default)))
         args.append("device: Optional[str] = None")
         args.append("progress: Optional[Callable[[str, float], object]] = None")

@@ -524,3 +524,56 @@ def test_probes_match_the_command(tmp_path):
     assert np.allclose(a.coeffs, b.coeffs, rtol=1e-6, atol=1e-6)  # the JSON's decimal digits
     with pytest.raises(ValueError, match="bounds"):
         prtbake.probes(SCENE, bounds=[0, 0, 0, 1, -1, 1])
+
+
+LIGHTMAP_OBJ = """v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+v -0.3 0.3 -0.3
+v 0.3 0.3 -0.3
+v 0.3 0.3 0.3
+v -0.3 0.3 0.3
+vt 0 0.5
+vt 1 0.5
+vt 1 1
+vt 0 1
+vt 0.1 0.1
+vt 0.4 0.1
+vt 0.4 0.4
+vt 0.1 0.4
+vn 0 1 0
+vn 0 -1 0
+f 1/1/1 4/4/1 3/3/1
+f 1/1/1 3/3/1 2/2/1
+f 5/5/2 6/6/2 7/7/2
+f 5/5/2 7/7/2 8/8/2
+"""
+
+
+def test_lightmap_matches_the_command(tmp_path):
+    # A floor with a square roof above its middle; the roof's chart apart from the floor's.
+    obj = tmp_path / "floor.obj"
+    obj.write_text(LIGHTMAP_OBJ)
+    cli("lightmap", obj, "-o", tmp_path / "lm", "--size", "32", "--samples", "64", "--products", "ao,bent")
+    exr = prtbake.read_exr(tmp_path / "lm" / "ao.exr")
+    r = prtbake.lightmap(obj, size=32, samples=64, products="ao,bent")
+    assert r.ao.shape == (32, 32) and r.bent.shape == (32, 32, 3) and r.irradiance is None
+    assert np.array_equal(exr["Y"], r.ao)
+    assert r.ao.base is not None  # the library's vector, not a copy
+    assert r.ao.min() < 0.9 and r.uv_set == 0  # the roof shades the floor
+    # The same mesh from arrays (OBJ's v flipped to glTF's convention) bakes the same texels.
+    m = prtbake.Mesh.load(obj)
+    assert m.uv_sets == [0]
+    rows = [l.split()[1:] for l in LIGHTMAP_OBJ.splitlines()]
+    v = np.array([x for l, x in zip(LIGHTMAP_OBJ.splitlines(), rows) if l.startswith("v ")], np.float32)
+    vt = np.array([x for l, x in zip(LIGHTMAP_OBJ.splitlines(), rows) if l.startswith("vt ")], np.float32)
+    uv = np.stack([vt[:, 0], 1 - vt[:, 1]], axis=1)
+    normals = np.array([[0, 1, 0]] * 4 + [[0, -1, 0]] * 4, np.float32)
+    tris = np.array([[0, 3, 2], [0, 2, 1], [4, 5, 6], [4, 6, 7]])
+    a = prtbake.lightmap(prtbake.Mesh(v, tris, normals=normals, uvs=[uv]), size=32, samples=64, products="ao,bent")
+    assert np.allclose(a.ao, r.ao, atol=1e-6) and np.array_equal(a.state, r.state)
+    with pytest.raises(prtbake.InputError, match="no UV set 1"):
+        prtbake.lightmap(obj, uv=1)
+    with pytest.raises(ValueError, match="size"):
+        prtbake.lightmap(obj, size=0)
