@@ -56,6 +56,10 @@ struct Registrar {
 // Prints "prtbake: <text>" to stderr unless quiet (status lines, not errors).
 void status(const CommandLine& cl, const std::string& text);
 
+// Writes every file of `files` (path, bytes) together after creating the directory `dir`: each is
+// staged first, then all are committed, so that a failure leaves none of them (OutputError).
+void writeOutputsTogether(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files);
+
 // The options of product `type`: the keys of its job type (jobs.h, declared once there) as
 // --name with their help, range and default; then `extra`, the command's own (its outputs).
 std::vector<OptionSpec> productOptions(const std::string& type, std::vector<OptionSpec> extra);

@@ -1,16 +1,10 @@
 // prtbake lightmap: per-texel lighting data on a mesh's lightmap UVs (see prtbake/lightmap.h,
 // docs/lightmap.md).
-#include <sys/stat.h>
-
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <future>
-#include <memory>
 
 #include "cli.h"
 #include "jobs.h"
-#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/lightmap.h"
 #include "prtbake/mesh.h"
@@ -52,14 +46,7 @@ int runLightmap(const CommandLine& cl) {
   std::map<std::string, std::string> paths;
   for (const auto& [kind, path] : outputs.items()) paths[kind] = path.get<std::string>();
   const auto files = jobs::lightmapOutputBytes(paths, input, mesh, p, o, lm);
-  if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
-    throw OutputError(dir, std::string("cannot create the directory: ") + std::strerror(errno));
-  std::vector<std::unique_ptr<AtomicFile>> staged;
-  for (const auto& [path, bytes] : files) {
-    staged.push_back(std::make_unique<AtomicFile>(path));
-    staged.back()->write(bytes);
-  }
-  for (auto& f : staged) f->commit();
+  writeOutputsTogether(dir, files);
   char line[256];
   std::snprintf(line, sizeof line, "lightmap: %.3f s (bake %.3f s), %.3g rays; %zu texels baked, %zu moved, %zu buried, %zu dilated",
                 lm.totalSeconds, lm.bakeSeconds, double(lm.rays), lm.baked, lm.moved, lm.buried, lm.dilated);

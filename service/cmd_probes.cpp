@@ -1,15 +1,9 @@
 // prtbake probes: a light probe grid of a scene (see prtbake/probes.h, docs/probes.md).
-#include <sys/stat.h>
-
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <future>
-#include <memory>
 
 #include "cli.h"
 #include "jobs.h"
-#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
 #include "prtbake/probes.h"
@@ -49,14 +43,7 @@ int runProbes(const CommandLine& cl) {
     files.emplace_back(dir + "/probes.mjs", probeGridThreejsLoaderBytes(g, "probes.ktx2"));
   }
   if (cl.has("preview")) files.emplace_back(dir + "/probes.png", jobs::probeGridPreviewPngBytes(mesh, g, rt));
-  if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
-    throw OutputError(dir, std::string("cannot create the directory: ") + std::strerror(errno));
-  std::vector<std::unique_ptr<AtomicFile>> staged;
-  for (const auto& [path, bytes] : files) {
-    staged.push_back(std::make_unique<AtomicFile>(path));
-    staged.back()->write(bytes);
-  }
-  for (auto& f : staged) f->commit();
+  writeOutputsTogether(dir, files);
   char line[256];
   std::snprintf(line, sizeof line, "probes: %.3f s (trace %.3f s, surfaces %.3f s), %.3g rays; %zu moved, %zu invalid",
                 g.totalSeconds, g.traceSeconds, g.surfaceSeconds, double(g.rays), g.moved, g.invalid);

@@ -1,11 +1,15 @@
 // prtbake: entry point. Parses the command line, dispatches to a subcommand and
 // maps exceptions to exit codes: 0 success, 1 failed job / bad input, 2 usage.
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
+#include <memory>
 #include <string>
 
 #include "cli.h"
@@ -202,6 +206,17 @@ std::vector<std::string> optionsOnlyOf(const std::string& a, const std::string& 
     if (k.onCommandLine && std::none_of(other.begin(), other.end(), [&](const jobs::KeySpec& o) { return o.name == k.name; }))
       names.push_back(k.cliName().substr(2));
   return names;
+}
+
+void writeOutputsTogether(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files) {
+  if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
+    throw OutputError(dir, std::string("cannot create the directory: ") + std::strerror(errno));
+  std::vector<std::unique_ptr<AtomicFile>> staged;
+  for (const auto& [path, bytes] : files) {
+    staged.push_back(std::make_unique<AtomicFile>(path));
+    staged.back()->write(bytes);
+  }
+  for (auto& f : staged) f->commit();
 }
 
 std::map<std::string, std::string> keyTexts(const CommandLine& cl) {

@@ -1,6 +1,8 @@
 // glTF 2.0 reading shared by the mesh loader and the transport glTF copy's reader (io/gltf.h).
 #include <cstdint>
+#include <cctype>
 #include <cstring>
+#include <sstream>
 #include <nlohmann/json.hpp>
 #include <sys/stat.h>
 
@@ -150,6 +152,19 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
     }
   }
   return out;
+}
+
+std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path) {
+  const size_t dot = path.find_last_of('.');
+  std::string ext = dot == std::string::npos ? "" : path.substr(dot + 1);
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const bool binary = ext == "glb";
+  for (auto& b : model.buffers) b.uri.clear();
+  tinygltf::TinyGLTF writer;
+  std::ostringstream os;
+  if (!writer.WriteGltfSceneToStream(&model, os, !binary, binary))
+    throw OutputError(path, "cannot serialise the glTF copy");
+  return os.str();
 }
 
 }  // namespace detail

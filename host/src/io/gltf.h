@@ -24,6 +24,11 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model);
 std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
                                  const std::string& what, size_t expectedCount = SIZE_MAX);
 
+// The bytes of a glTF copy at `path`: binary (.glb, buffer 0 as its BIN chunk) when the
+// extension is .glb (any case), else .gltf text with every buffer embedded as a data URI (the
+// model's buffer URIs are cleared). Throws OutputError(path, ...) when tinygltf cannot write it.
+std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path);
+
 // The nodes to walk: the default scene's roots, scene 0's, or every root node.
 std::vector<int> gltfRootNodes(const tinygltf::Model& model);
 

@@ -1,9 +1,6 @@
 // Lightmap outputs: OpenEXR, KTX 2.0, the AO's PNG and the sidecar (see prtbake/lightmap.h).
 #include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
 
 #include "io/gltf.h"
@@ -158,14 +155,7 @@ std::string lightmapGltfBytes(const std::string& path, const Mesh& mesh, const L
     occ.texCoord = lm.uvSet;
     occ.strength = 1.0;
   }
-  const bool binary = path.size() >= 4 && (path.compare(path.size() - 4, 4, ".glb") == 0 ||
-                                           path.compare(path.size() - 4, 4, ".GLB") == 0);
-  for (auto& b : model.buffers) b.uri.clear();
-  tinygltf::TinyGLTF writer;
-  std::ostringstream os;
-  if (!writer.WriteGltfSceneToStream(&model, os, !binary, binary))
-    throw OutputError(path, "cannot serialise the glTF copy");
-  return os.str();
+  return detail::gltfCopyBytes(model, path);
 }
 
 std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOptions& o, const LightmapResult& lm) {

@@ -16,16 +16,6 @@
 #include "core/tolerance_pilot.h"
 
 namespace prtbake {
-namespace {
-
-std::string lowerExt(const std::string& path) {
-  const size_t dot = path.find_last_of('.');
-  if (dot == std::string::npos) return "";
-  std::string e = path.substr(dot + 1);
-  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
-}  // namespace
 
 std::string games202TransportBytes(const Mesh& mesh, const TransportResult& r) {
   if (r.channels != 1)
@@ -105,14 +95,7 @@ std::string transportGltfBytes(const std::string& path, const Mesh& mesh, const 
         prim.attributes[name] = int(model.accessors.size() - 1);
       }
   }
-  const bool binary = lowerExt(path) == "glb";
-  // A .glb carries buffer 0 as its BIN chunk; a .gltf embeds every buffer as a data URI.
-  for (auto& b : model.buffers) b.uri.clear();
-  tinygltf::TinyGLTF writer;
-  std::ostringstream os;
-  if (!writer.WriteGltfSceneToStream(&model, os, !binary, binary))
-    throw OutputError(path, "cannot serialise the glTF copy");
-  return os.str();
+  return detail::gltfCopyBytes(model, path);
 }
 
 void writeTransportGltf(const std::string& path, const Mesh& mesh, const TransportResult& r) {
