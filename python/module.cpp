@@ -385,25 +385,28 @@ py::object transportProduct(const py::object& meshObj, const py::kwargs& kw) {
   return result("TransportResult", f);
 }
 
-// env of probes and lightmap: the key's path (an SH JSON or a map), or radiance coefficients as an
-// (n², 3) array (or an EnvResult).
-bool envIsArray(const py::kwargs& kw) {
-  return kw.contains("env") && !kw["env"].is_none() && !py::isinstance<py::str>(kw["env"]) && !py::hasattr(kw["env"], "__fspath__");
+// env of probes and lightmap: the key's path (an SH JSON or a map, read on the device later: the
+// parameters of `type` keep it), or radiance coefficients as an (n², 3) array or an EnvResult (read
+// here, *fromArray set). Returns the product's parameters (outputs: the kinds its rules need).
+json envParams(const char* type, const py::kwargs& kw, const json& outputs, ShCoeffs* env, bool* fromArray) {
+  *fromArray = kw.contains("env") && !kw["env"].is_none() && !py::isinstance<py::str>(kw["env"]) &&
+               !py::hasattr(kw["env"], "__fspath__");
+  std::vector<std::string> own = {"device", "progress"};
+  if (*fromArray) {
+    own.push_back("env");
+    const py::object e = kw["env"];
+    *env = shFromArray(py::hasattr(e, "coeffs") ? py::object(e.attr("coeffs")) : e);
+  }
+  return paramsOf(type, kw, outputs, own);
 }
 
 py::object lightmapProduct(const py::object& meshObj, const py::kwargs& kw) {
-  const bool envArray = envIsArray(kw);
-  std::vector<std::string> own = {"device", "progress"};
-  if (envArray) own.push_back("env");
-  const json p = paramsOf("lightmap", kw, {{"json", "-"}}, own);
+  ShCoeffs env;
+  bool envArray = false;
+  const json p = envParams("lightmap", kw, {{"json", "-"}}, &env, &envArray);
   const LightmapOptions o = jobs::lightmapOptionsFrom(p);
   const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
   const std::string spec = deviceOf(kw);
-  ShCoeffs env;
-  if (envArray) {
-    const py::object e = kw["env"];
-    env = shFromArray(py::hasattr(e, "coeffs") ? py::object(e.attr("coeffs")) : e);
-  }
   LightmapResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
   {
@@ -437,18 +440,12 @@ py::object lightmapProduct(const py::object& meshObj, const py::kwargs& kw) {
 }
 
 py::object probesProduct(const py::object& meshObj, const py::kwargs& kw) {
-  const bool envArray = envIsArray(kw);
-  std::vector<std::string> own = {"device", "progress"};
-  if (envArray) own.push_back("env");
-  const json p = paramsOf("probes", kw, {{"npy", "-"}}, own);
+  ShCoeffs env;
+  bool envArray = false;
+  const json p = envParams("probes", kw, {{"npy", "-"}}, &env, &envArray);
   const ProbeOptions o = jobs::probeOptionsFrom(p);
   const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
   const std::string spec = deviceOf(kw);
-  ShCoeffs env;
-  if (envArray) {
-    const py::object e = kw["env"];
-    env = shFromArray(py::hasattr(e, "coeffs") ? py::object(e.attr("coeffs")) : e);
-  }
   ProbeGridResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
   {
