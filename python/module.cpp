@@ -423,6 +423,9 @@ py::object lightmapProduct(const py::object& meshObj, const py::kwargs& kw) {
   f["transport"] = r.transport.empty() ? py::object(py::none())
                    : r.transportChannels == 1 ? py::object(adopt(std::move(r.transport), {h, w, nc}))
                                               : py::object(adopt(std::move(r.transport), {h, w, 3, nc}));
+  const py::ssize_t ns = py::ssize_t(r.shOrder) * r.shOrder;
+  f["sh"] = r.sh.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.sh), {h, w, ns, 3}));
+  f["sh_order"] = r.shOrder;
   f["state"] = adopt(std::move(r.state), {h, w});
   f["uv_set"] = r.uvSet;
   f["order"] = r.order;

@@ -21,12 +21,13 @@ int runLightmap(const CommandLine& cl) {
   // the AO also as PNG, and the sidecar.
   const unsigned products = parseLightmapProducts(cl.has("products") ? cl.get("products") : "ao");
   nlohmann::json outputs = {{"json", dir + "/lightmap.json"}};
-  for (const char* name : {"ao", "bent", "irradiance", "transport"}) {
+  for (const std::string name : {"ao", "bent", "irradiance", "transport", "sh"}) {
     if (!(products & parseLightmapProducts(name))) continue;
     const std::string base = dir + "/" + name;
-    if (format != "ktx2" || std::string(name) == "transport") outputs[std::string(name) + "_exr"] = base + ".exr";
-    if (format != "exr" && std::string(name) != "transport") outputs[std::string(name) + "_ktx2"] = base + ".ktx2";
-    if (std::string(name) == "ao") outputs["ao_png"] = base + ".png";
+    const bool exrOnly = name == "transport" || name == "sh";
+    if (format != "ktx2" || exrOnly) outputs[name + "_exr"] = base + ".exr";
+    if (format != "exr" && !exrOnly) outputs[name + "_ktx2"] = base + ".ktx2";
+    if (name == "ao") outputs["ao_png"] = base + ".png";
   }
   if (cl.has("gltf")) outputs["gltf"] = cl.get("gltf");
   const nlohmann::json p = productParams(cl, "lightmap", outputs);
@@ -55,13 +56,14 @@ int runLightmap(const CommandLine& cl) {
 }
 
 PRTBAKE_COMMAND(Command{
-    "lightmap", "per-texel AO, bent normals, irradiance or transport on a mesh's lightmap UVs",
+    "lightmap", "per-texel AO, bent normals, irradiance, directional (SH) irradiance or transport on a mesh's lightmap UVs",
     "prtbake lightmap MESH -o DIR [--uv N] [--size N | --texels-per-unit D] [--products LIST]\n"
-    "       [--samples N | --tolerance E] [--env SH.json|ENVMAP] [--order N] [--max-distance D] [--bounces B]\n"
-    "       [--format exr|ktx2|both] [--gltf OUT.glb|OUT.gltf]\n"
-    "Writes DIR/<product>.exr (or .ktx2, RGBA16F) for each product asked for (default ao; alpha: the texel's\n"
-    "validity), DIR/ao.png (linear, 8 or 16 bits) with ao, and DIR/lightmap.json (counts, samples, timings);\n"
-    "--gltf also a copy of the glTF whose materials use the AO as occlusionTexture on the lightmap's UV set.",
+    "       [--samples N | --tolerance E] [--env SH.json|ENVMAP] [--order N] [--sh-order 2|3]\n"
+    "       [--max-distance D] [--bounces B] [--format exr|ktx2|both] [--gltf OUT.glb|OUT.gltf]\n"
+    "Writes DIR/<product>.exr (or .ktx2, RGBA16F; transport and sh: OpenEXR only) for each product asked\n"
+    "for (default ao; alpha: the texel's validity), DIR/ao.png (linear, 8 or 16 bits) with ao, and\n"
+    "DIR/lightmap.json (counts, samples, timings); --gltf also a copy of the glTF whose materials use the\n"
+    "AO as occlusionTexture on the lightmap's UV set.",
     productOptions("lightmap", {{"output", true, "the output directory (-o)"},
                                 {"format", true, "exr (default) | ktx2 | both: the products' image format"},
                                 {"gltf", true, "also a copy of the glTF input with the AO as its occlusionTexture (.glb or .gltf)"}}),

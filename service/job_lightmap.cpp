@@ -7,6 +7,7 @@
 #include "jobs.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "prtbake/glossy.h"
 #include "prtbake/lightmap.h"
 #include "prtbake/mesh.h"
 
@@ -23,6 +24,7 @@ LightmapOptions lightmapOptionsFrom(const json& p) {
   o.toleranceMaxSamples = p["max_samples"].get<int>();
   o.seed = p["seed"].get<uint64_t>();
   o.order = p["order"].get<int>();
+  o.shOrder = p["sh_order"].get<int>();
   if (!p["max_distance"].is_null()) o.maxDistance = p["max_distance"].get<double>();
   o.bounces = p["bounces"].get<int>();
   if (!p["albedo"].is_null()) {
@@ -42,7 +44,8 @@ std::vector<std::pair<std::string, std::string>> lightmapOutputBytes(const std::
   const bool half = p["half"].get<bool>();
   std::vector<std::pair<std::string, std::string>> files;
   const std::pair<const char*, LightmapProduct> products[] = {
-      {"ao", kLightmapAo}, {"bent", kLightmapBent}, {"irradiance", kLightmapIrradiance}, {"transport", kLightmapTransport}};
+      {"ao", kLightmapAo}, {"bent", kLightmapBent}, {"irradiance", kLightmapIrradiance}, {"transport", kLightmapTransport},
+      {"sh", kLightmapSh}};
   for (const auto& [kind, path] : outputs) {
     for (const auto& [name, bit] : products) {
       if (kind == std::string(name) + "_exr") files.emplace_back(path, lightmapExrBytes(lm, bit, half));
@@ -87,20 +90,22 @@ JobType lightmapJobType() {
   t.name = "lightmap";
   t.input = InputKind::File;
   t.outputKinds = {"ao_exr", "ao_ktx2", "ao_png", "bent_exr", "bent_ktx2", "irradiance_exr", "irradiance_ktx2",
-                   "transport_exr", "gltf", "json"};
+                   "transport_exr", "sh_exr", "gltf", "json"};
   t.keys = {integer("uv", nullptr, 0, 7, "the UV set (TEXCOORD_n) of the lightmap (none: 1 where the mesh has it, else 0)"),
             integer("size", nullptr, 1, kMaxLightmapSize, "the lightmap's width and height in texels (none: 512, or from texels_per_unit)"),
             number("texels_per_unit", nullptr, 1e-9, 1e9,
                    "texels per world unit: the size that gives the mesh's surface this density (rounded up to a multiple of 4)"),
-            {"products", ValueKind::ChoiceList, "ao", 0, 0, {"ao", "bent", "irradiance", "transport"},
-             "what to bake: ao, bent (normals), irradiance (E/pi), transport (per-texel PRT), or a comma-separated list"},
+            {"products", ValueKind::ChoiceList, "ao", 0, 0, {"ao", "bent", "irradiance", "transport", "sh"},
+             "what to bake: ao, bent (normals), irradiance (E/pi), transport (per-texel PRT), sh (directional "
+             "irradiance), or a comma-separated list"},
             integer("samples", 256, 1, 1 << 20, "rays per texel"),
             number("tolerance", nullptr, 1e-6, 1.0,
                    "the rays per texel that bring 95 % of the texels' transport within this error, predicted from a pilot "
                    "(prtbake/tolerance.h); excludes samples"),
             integer("max_samples", 65536, 64, 1 << 20, "with tolerance: the most rays per texel"),
             integer("seed", 0, 0, 4294967295.0, "the sample set"),
-            integer("order", 3, 1, 8, "SH order of the transport and of the environment in the irradiance"),
+            integer("order", 3, 1, 8, "SH order of the transport and of the environment in irradiance and sh (sh: up to 6)"),
+            integer("sh_order", 3, 2, 3, "sh: 2 (L1, 4 coefficients per channel) or 3 (L2, 9)"),
             number("max_distance", nullptr, 1e-9, 1e9, "ao and bent: only occluders within this distance count (none: all)"),
             integer("bounces", 0, 0, 16, "irradiance and transport: interreflections (0: shadowed)"),
             number("albedo", nullptr, 0.0, 1.0, "a grey albedo for every vertex, overriding the file's (bounces)"),
@@ -110,7 +115,7 @@ JobType lightmapJobType() {
             boolean("half", "OpenEXR outputs in 16-bit half instead of float"),
             integer("png_bits", 8, 8, 16, "bits per sample of the AO's PNG (8 or 16)"),
             {"env", ValueKind::Path, nullptr, 0, 0, {},
-             "the lighting of irradiance: a radiance SH JSON (prtbake env) or an environment map (none: constant white)"},
+             "the lighting of irradiance and sh: a radiance SH JSON (prtbake env) or an environment map (none: constant white)"},
             integer("env_order", 8, 1, 8, "SH order an environment map is projected to")};
   t.check = [](const json& raw, const json& p) {
     KeyProblems problems;
@@ -137,10 +142,13 @@ JobType lightmapJobType() {
       }
     if (raw.contains("max_distance") && !(products & (kLightmapAo | kLightmapBent)))
       problems.push_back({"max_distance", "only applies to ao and bent"});
-    if (raw.contains("env") && !(products & kLightmapIrradiance))
-      problems.push_back({"env", "only applies to irradiance"});
-    if (raw.contains("bounces") && !(products & (kLightmapIrradiance | kLightmapTransport)))
-      problems.push_back({"bounces", "only applies to irradiance and transport"});
+    if (raw.contains("env") && !(products & (kLightmapIrradiance | kLightmapSh)))
+      problems.push_back({"env", "only applies to irradiance and sh"});
+    if (raw.contains("bounces") && !(products & (kLightmapIrradiance | kLightmapTransport | kLightmapSh)))
+      problems.push_back({"bounces", "only applies to irradiance, transport and sh"});
+    if (raw.contains("sh_order") && !(products & kLightmapSh)) problems.push_back({"sh_order", "only applies to sh"});
+    if ((products & kLightmapSh) && p["order"].get<int>() > kMaxGlossyOrder)
+      problems.push_back({"order", "the sh product takes orders up to " + std::to_string(kMaxGlossyOrder)});
     if (raw.contains("albedo") && p["bounces"] == 0) problems.push_back({"albedo", "only applies with bounces >= 1"});
     if (raw.contains("env_order") && !raw.contains("env")) problems.push_back({"env_order", "only applies to an environment map"});
     return problems;

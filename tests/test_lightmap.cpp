@@ -11,6 +11,7 @@
 
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
+#include "prtbake/glossy.h"
 #include "prtbake/lightmap.h"
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"
@@ -357,6 +358,91 @@ TEST_CASE("Lightmap: the bent normal and AO at the foot of a wall match the half
   CHECK(lm.bent[3 * far + 2] > 0.95);
 }
 
+namespace {
+
+// ∫ Y_j(ω) dω over the directions with z > 0 and sx · x > 0 (a quarter of the sphere), j < 9, by
+// the midpoint rule on a 1024 × 2048 grid in (θ, φ) (a reference independent of the bake's
+// sampler; its own error is below 1e-5).
+std::array<double, 9> quarterSphereIntegrals(double sx) {
+  std::array<double, 9> sum{};
+  const int nt = 1024, np = 2048;
+  for (int i = 0; i < nt; ++i) {
+    const double th = (i + 0.5) * (kPi / 2) / nt;
+    for (int k = 0; k < np; ++k) {
+      const double ph = (k + 0.5) * 2 * kPi / np;
+      const double x = std::sin(th) * std::cos(ph), y = std::sin(th) * std::sin(ph), z = std::cos(th);
+      if (sx * x <= 0) continue;
+      double Y[9];
+      shEval(3, x, y, z, Y);
+      const double dw = std::sin(th) * (kPi / 2 / nt) * (2 * kPi / np);
+      for (int j = 0; j < 9; ++j) sum[size_t(j)] += Y[j] * dw;
+    }
+  }
+  return sum;
+}
+
+}  // namespace
+
+TEST_CASE("Lightmap: directional (SH) irradiance at the foot of a wall matches the quarter sphere's closed form",
+          "[lightmap]") {
+  // The wall of the bent-normal test: under a constant white sky (L = 1, l_0 = √(4π)) the light
+  // reaching the floor at the wall's foot comes from the quarter sphere z > 0, x < 0, so
+  // D_j = (Â_l/π) ∫_{quarter} Y_j dω, and a normal n′ shades Σ_j D_j Y_j(n′) (E/π, truncated).
+  Mesh m;
+  addFloor(m, 1, {0, 0, 0.5, 1});
+  const Vec3 w[4] = {{0.2, -1, 0}, {0.2, -1, 3}, {0.2, 1, 3}, {0.2, 1, 0}};  // faces −x
+  addQuad(m, w, {0.6, 0.1, 0.9, 0.9});
+  LightmapOptions o;
+  o.size = 32;
+  o.samples = 4096;
+  o.products = kLightmapSh | kLightmapIrradiance;
+  const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(1), o);
+  REQUIRE(lm.shOrder == 3);
+  REQUIRE(lm.sh.size() == lm.texels() * 27);
+  const size_t nearWall = size_t(16) * 32 + 9;
+  const std::array<double, 9> q = quarterSphereIntegrals(-1), mirrored = quarterSphereIntegrals(+1);
+  // Tolerance 0.02 per coefficient: the sampler's noise at 4096 uniform rays (the visible
+  // fraction's standard deviation 2π · ½ · Y_0 / √4096 = 0.014 for D_0, less for the others
+  // with low-discrepancy points) and the wall's finite size (as the bent-normal test).
+  double worst = 0, worstMirrored = 0;
+  for (int j = 0; j < 9; ++j) {
+    const double a = clampedCosineFactor(int(std::sqrt(j + 0.5))) / kPi;
+    for (int c = 0; c < 3; ++c) {
+      const double got = lm.sh[nearWall * 27 + 3 * j + c];
+      INFO("j " << j << " channel " << c << ": " << got << " against " << a * q[size_t(j)]);
+      CHECK(std::abs(got - a * q[size_t(j)]) < 0.02);
+      worst = std::max(worst, std::abs(got - a * q[size_t(j)]));
+      worstMirrored = std::max(worstMirrored, std::abs(got - a * mirrored[size_t(j)]));
+    }
+  }
+  // The oracle fails on a wall mirrored to the other side (a flipped x).
+  INFO("largest difference " << worst << ", against the mirrored wall " << worstMirrored);
+  CHECK(worstMirrored > 0.3);
+  // Shaded with the texel's own normal, the SH gives the irradiance product back up to the
+  // clamped cosine's truncation at L2: |Δ| ≤ l_0 × clampedCosineTruncationBound(3)/√2 (glossy.h)
+  // plus the two estimators' noise (0.02), at every valid floor texel.
+  double Y[9];
+  shEval(3, 0, 0, 1, Y);
+  const double bound = std::sqrt(4 * kPi) * clampedCosineTruncationBound(3) / std::sqrt(2.0) + 0.02;
+  double largest = 0;
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 16; ++x) {
+      const size_t i = size_t(y) * 32 + x;
+      if (!lm.valid(i)) continue;
+      double e = 0;
+      for (int j = 0; j < 9; ++j) e += lm.sh[i * 27 + 3 * j] * Y[j];
+      largest = std::max(largest, std::abs(e - lm.irradiance[3 * i]));
+    }
+  INFO("largest |E_sh(n) - E| " << largest << ", bound " << bound);
+  CHECK(largest <= bound);
+  // Near the wall the floor's light comes from −x: a normal tilted that way gets more of it.
+  double Yt[9];
+  shEval(3, -std::sqrt(0.5), 0, std::sqrt(0.5), Yt);
+  double tilted = 0, straight = 0;
+  for (int j = 0; j < 9; ++j) tilted += lm.sh[nearWall * 27 + 3 * j] * Yt[j], straight += lm.sh[nearWall * 27 + 3 * j] * Y[j];
+  CHECK(tilted > straight + 0.1);
+}
+
 TEST_CASE("Lightmap: a UV seam around a cylinder is stitched: its two sides agree along it", "[lightmap]") {
   // An open tube (radius 0.5, height 1, 24 sides, outward) unwrapped onto u ∈ [0.1, 0.9] by angle,
   // v ∈ [0.1, 0.9] by height: the edge at angle 0 lies on u = 0.1 and on u = 0.9. Under
@@ -506,12 +592,27 @@ TEST_CASE("Lightmap: the command writes every output or none, and refuses bad in
     n << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nvt 0 0\nvt nan 0\nvt 1 1\nf 1/1 3/3 2/2\n";
   }
   const auto ok = test::runCli("lightmap '" + dir + "/floor.obj' -o '" + dir + "/out' --size 16 --samples 16 "
-                               "--products ao,bent,irradiance --format both");
+                               "--products ao,bent,irradiance,sh --sh-order 2 --format both");
   INFO(ok.output);
   REQUIRE(ok.exitCode == 0);
   for (const char* f : {"ao.exr", "ao.ktx2", "ao.png", "bent.exr", "bent.ktx2", "irradiance.exr", "irradiance.ktx2",
-                        "lightmap.json"})
+                        "sh.exr", "lightmap.json"})
     CHECK(test::fileExists(dir + "/out/" + f));
+  CHECK_FALSE(test::fileExists(dir + "/out/sh.ktx2"));
+  // The L1 map of an open floor under white, shaded along its normal (+y): E/π = 1, half from
+  // D_0 Y_0 and half from the L1 band (the hemisphere's light has no L2 part along n, so the
+  // truncation is exact here). Tolerance 0.01: 16 uniform rays estimate ∫ Y_1 over the
+  // hemisphere with low-discrepancy points.
+  const ExrImage sh = readExr(dir + "/out/sh.exr");
+  REQUIRE(sh.channel("SH3.B") != nullptr);
+  CHECK(sh.channel("SH4.R") == nullptr);
+  double Yn[4];
+  shEval(2, 0, 1, 0, Yn);
+  for (size_t i = 0; i < 256; ++i) {
+    double e = 0;
+    for (int j = 0; j < 4; ++j) e += (*sh.channel("SH" + std::to_string(j) + ".G"))[i] * Yn[j];
+    CHECK(std::abs(e - 1.0) < 0.01);
+  }
   const ExrImage ao = readExr(dir + "/out/ao.exr");
   REQUIRE(ao.width == 16);
   for (float v : *ao.channel("Y")) CHECK(std::abs(v - 1.0f) < 1e-6f);  // an open floor (float: 2√π T_0)
@@ -530,6 +631,9 @@ TEST_CASE("Lightmap: the command writes every output or none, and refuses bad in
       {"'" + dir + "/floor.obj' --size 1048576", "--size", 2},
       {"'" + dir + "/floor.obj' --products ao,dust", "dust", 2},
       {"'" + dir + "/floor.obj' --max-distance 1 --products irradiance", "--max-distance", 2},
+      {"'" + dir + "/floor.obj' --products sh --sh-order 4", "--sh-order", 2},
+      {"'" + dir + "/floor.obj' --products sh --order 7", "--order", 2},
+      {"'" + dir + "/floor.obj' --sh-order 2", "--sh-order", 2},
   };
   for (const Bad& b : bad) {
     const std::string out = dir + "/bad";

@@ -130,6 +130,8 @@ class LightmapResult(_Result):
     bent: Optional[_np.ndarray]        # (H, W, 3) float32, unit bent normals, object space
     irradiance: Optional[_np.ndarray]  # (H, W, 3) float32, E/pi, linear RGB
     transport: Optional[_np.ndarray]   # (H, W, n²) or (H, W, 3, n²) float32, per-texel PRT transport
+    sh: Optional[_np.ndarray]          # (H, W, m², 3) float32, directional irradiance: E(n')/pi = sum_j sh[..., j, :] Y_j(n')
+    sh_order: int                      # m: 2 (L1) or 3 (L2); 0 without sh
     state: _np.ndarray                 # (H, W) uint8: 0 empty, 1 baked, 2 moved, 3 buried, 4 dilated
     uv_set: int
     order: int
@@ -203,7 +205,7 @@ _SUMMARY = {
     "probes": ("scene", "A light probe grid: radiance SH at points in space, for moving objects.\n\n"
                "scene: a prtbake.Mesh or a mesh file. env: an SH JSON or environment map path, or radiance\n"
                "coefficients as an (n², 3) array (an EnvResult's coeffs). Returns ProbeGridResult."),
-    "lightmap": ("mesh", "Per-texel AO, bent normals, irradiance and transport on a mesh's lightmap UVs.\n\n"
+    "lightmap": ("mesh", "Per-texel AO, bent normals, irradiance, directional (SH) irradiance and transport\non a mesh's lightmap UVs.\n\n"
                  "mesh: a prtbake.Mesh (with uvs) or a mesh file. env: an SH JSON or environment map path, or\n"
                  "radiance coefficients as an (n², 3) array. Returns LightmapResult."),
     "ibl": ("source", "Engine lighting packages (three.js, Filament, Babylon.js, glTF) written to out_dir,\n"

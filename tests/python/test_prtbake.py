@@ -555,11 +555,15 @@ def test_lightmap_matches_the_command(tmp_path):
     # A floor with a square roof above its middle; the roof's chart apart from the floor's.
     obj = tmp_path / "floor.obj"
     obj.write_text(LIGHTMAP_OBJ)
-    cli("lightmap", obj, "-o", tmp_path / "lm", "--size", "32", "--samples", "64", "--products", "ao,bent")
+    cli("lightmap", obj, "-o", tmp_path / "lm", "--size", "32", "--samples", "64", "--products", "ao,bent,sh",
+        "--sh-order", "2")
     exr = prtbake.read_exr(tmp_path / "lm" / "ao.exr")
-    r = prtbake.lightmap(obj, size=32, samples=64, products="ao,bent")
+    r = prtbake.lightmap(obj, size=32, samples=64, products="ao,bent,sh", sh_order=2)
     assert r.ao.shape == (32, 32) and r.bent.shape == (32, 32, 3) and r.irradiance is None
     assert np.array_equal(exr["Y"], r.ao)
+    sh = prtbake.read_exr(tmp_path / "lm" / "sh.exr")
+    assert r.sh.shape == (32, 32, 4, 3) and r.sh_order == 2
+    assert np.array_equal(sh["SH3.G"], r.sh[:, :, 3, 1])
     assert r.ao.base is not None  # the library's vector, not a copy
     assert r.ao.min() < 0.9 and r.uv_set == 0  # the roof shades the floor
     # The same mesh from arrays (OBJ's v flipped to glTF's convention) bakes the same texels.

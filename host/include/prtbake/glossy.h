@@ -108,6 +108,12 @@ double glossyMatrixBytes(size_t vertices, int channels, int orderOut, int orderI
 using GlossyBlockSink = std::function<void(size_t firstVertex, size_t count, const float* values)>;
 GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOptions& options,
                                const GlossyBlockSink& sink);
+// The same for surface points (prtbake/transport.h, SurfacePoints): point i takes the rays a
+// vertex of index i would, from its position offset along its face normal, over the hemisphere
+// of its shading normal (as computeTransportAtPoints). The options' vertex range must be the
+// default; `firstVertex` in the sink is the first point of the block.
+GlossyStats bakeGlossyTransferAtPoints(Runtime& rt, const Mesh& mesh, const SurfacePoints& points,
+                                       const GlossyOptions& options, const GlossyBlockSink& sink);
 // The whole tensor in memory. UsageError stating the size when it exceeds the memory
 // limit (inputMemoryLimit(), 4 GiB by default: PRTBAKE_INPUT_LIMIT_MB).
 GlossyResult computeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOptions& options);

@@ -14,6 +14,14 @@
 //   irradiance  E(p)/π = Σ_i l_i T_i(p) per linear RGB channel under the environment's radiance
 //               coefficients l (shadowed, or interreflected with `bounces`): the exit radiance
 //               of a white Lambertian surface.
+//   sh          directional irradiance: per linear RGB channel the SH coefficients (order m = 2,
+//               L1, 4 of them; or m = 3, L2, 9) D_j = (Â_l/π) ∫_{n·ω>0} L_p(ω) Y_j(ω) dω of the light
+//               L_p reaching p from above its tangent plane: the environment's radiance where
+//               nothing blocks it (order n), and with `bounces` the exit radiance of the diffuse
+//               surfaces hit there (their transport of B − 1 bounces), so that a normal n′ (a
+//               normal map's) shades E(p, n′)/π ≈ Σ_j D_j Y_j(n′): the clamped cosine truncated
+//               at order m; at n′ = n this approximates the irradiance product. The glossy
+//               transfer matrices' estimator (prtbake/glossy.h) at the texels: D = diag(Â/π) M l.
 //   transport   T_i(p) of order n (grey, or RGB with coloured interreflection), so that the
 //               lighting can change at run time: L_o = ρ Σ_i l_i T_i.
 //
@@ -48,8 +56,10 @@ enum LightmapProduct : unsigned {
   kLightmapBent = 2u,
   kLightmapIrradiance = 4u,
   kLightmapTransport = 8u,
+  kLightmapSh = 16u,
 };
-// "ao,bent,irradiance,transport" (any subset, comma-separated) → bits; UsageError otherwise.
+constexpr unsigned kLightmapAllProducts = 31u;
+// "ao,bent,irradiance,transport,sh" (any subset, comma-separated) → bits; UsageError otherwise.
 unsigned parseLightmapProducts(const std::string& list);
 std::string lightmapProductsName(unsigned products);
 
@@ -63,7 +73,10 @@ struct LightmapOptions {
   double tolerance = 0;        // > 0: the transport's --tolerance (prtbake/tolerance.h) per pass
   int toleranceMaxSamples = 65536;
   uint64_t seed = 0;
-  int order = 3;               // SH order of transport and of the irradiance's environment (1..8)
+  int order = 3;               // SH order of transport and of the irradiance's environment (1..8;
+                               // with sh: 1..6, the glossy transfer's input orders)
+  int shOrder = 3;             // sh: 2 (L1: 4 coefficients) or 3 (L2: 9); `samples` rays per texel
+                               // (the tolerance does not apply to it)
   double maxDistance = 0;      // ao and bent: the occluders' range D (0: the whole scene)
   int bounces = 0;             // irradiance and transport: interreflections (0: shadowed)
   std::optional<std::array<float, 3>> albedoOverride;
@@ -84,7 +97,8 @@ struct LightmapResult {
   std::vector<float> bent;          // W × H × 3
   std::vector<float> irradiance;    // W × H × 3 (E/π, linear RGB)
   std::vector<float> transport;     // W × H × channels × order²
-  int order = 0, transportChannels = 1;
+  std::vector<float> sh;            // W × H × shOrder² × 3: per coefficient j, R G B
+  int order = 0, transportChannels = 1, shOrder = 0;
   size_t baked = 0, moved = 0, buried = 0, dilated = 0;  // texels of each state
   size_t centreOutside = 0;         // baked texels whose centre no triangle contains
   size_t charts = 0, degenerateTriangles = 0;
@@ -118,7 +132,8 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
 
 // --- outputs (*Bytes: the file's contents; the command writes them atomically) ---
 // OpenEXR of one product: ao "Y"; bent and irradiance "R", "G", "B"; transport "T0" … (grey)
-// or "R.T0" …, "G.T0" …, "B.T0" …; and "A": 1 where the texel's sample is valid (baked or
+// or "R.T0" …, "G.T0" …, "B.T0" …; sh "SH0.R", "SH0.G", "SH0.B", "SH1.R" … (one RGB layer per
+// coefficient); and "A": 1 where the texel's sample is valid (baked or
 // moved), 0 elsewhere (empty, buried, dilated). Half or float.
 std::string lightmapExrBytes(const LightmapResult& lm, LightmapProduct product, bool half);
 // KTX 2.0, RGBA16F, one level, of ao (R = G = B = A(p)), bent or irradiance, A as the EXR's.

@@ -168,9 +168,10 @@ namespace {
 // sums of the direct term, the bounce sums and the matrices (glossy.h).
 class GlossyBaker {
  public:
-  GlossyBaker(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, GlossyStats& st)
+  // `points`: surface points instead of the mesh's vertices (bakeGlossyTransferAtPoints).
+  GlossyBaker(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, GlossyStats& st, const SurfacePoints* points)
       : rt_(rt), mesh_(mesh), o_(o), st_(st), to_(detail::glossyTransportOptions(o)),
-        setup_(detail::makeRaySetup(mesh, to_, false)) {
+        setup_(points ? detail::makePointRaySetup(mesh, *points, to_) : detail::makeRaySetup(mesh, to_, false)) {
     no2_ = o.orderOut * o.orderOut, ni2_ = o.orderIn * o.orderIn;
     const int nmax = std::max(o.orderOut, o.orderIn);
     nmax2_ = nmax * nmax, gramCount_ = nmax2_ * (nmax2_ + 1) / 2, ch_ = st.channels;
@@ -221,7 +222,7 @@ class GlossyBaker {
     if (bounce_) traceBounce(nb);
     assemble(nb, errSum);
     sink(first, nb, values_.data());
-    progress_ = double(first + nb) / double(std::max<size_t>(mesh_.vertexCount(), 1));
+    progress_ = double(first + nb) / double(std::max<size_t>(setup_.count(), 1));
     reportProgress("glossy", progress_);
   }
 
@@ -242,9 +243,9 @@ class GlossyBaker {
     st_.diffuseSeconds = secondsSince(t0);
   }
 
-  // The BVH (with visibility) and the vertices nothing can occlude.
+  // The BVH (with visibility) and the vertices (points) nothing can occlude.
   void uploadScene() {
-    unocc_.assign(mesh_.vertexCount(), 0);
+    unocc_.assign(setup_.count(), 0);
     if (!visibility_) {
       nodes_ = rt_.upload(std::vector<float>(8, 0.0f));
       tris_ = rt_.upload(std::vector<float>(12, 0.0f));
@@ -421,11 +422,16 @@ class GlossyBaker {
 
 }  // namespace
 
-GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, const GlossyBlockSink& sink) {
+namespace {
+
+GlossyStats bake(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, const GlossyBlockSink& sink,
+                 const SurfacePoints* points) {
   const auto tStart = Clock::now();
   checkGlossyOptions(o);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
-  const size_t count = detail::vertexRangeSize(mesh, o.firstVertex, o.vertexCount);
+  if (points && (o.firstVertex != 0 || o.vertexCount))
+    throw UsageError("--vertex-range", "does not apply to surface points");
+  const size_t count = points ? points->count() : detail::vertexRangeSize(mesh, o.firstVertex, o.vertexCount);
   GlossyStats st;
   st.orderOut = o.orderOut;
   st.orderIn = o.orderIn;
@@ -438,7 +444,7 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
     st.totalSeconds = secondsSince(tStart);
     return st;
   }
-  GlossyBaker baker(rt, mesh, o, st);
+  GlossyBaker baker(rt, mesh, o, st, points);
   const size_t block = baker.blockVertices();
   double errSum = 0;
   const auto tKernel = Clock::now();
@@ -448,6 +454,19 @@ GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOption
   st.kernelSeconds = secondsSince(tKernel);
   st.totalSeconds = secondsSince(tStart);
   return st;
+}
+
+}  // namespace
+
+GlossyStats bakeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOptions& o, const GlossyBlockSink& sink) {
+  return bake(rt, mesh, o, sink, nullptr);
+}
+
+GlossyStats bakeGlossyTransferAtPoints(Runtime& rt, const Mesh& mesh, const SurfacePoints& points,
+                                       const GlossyOptions& o, const GlossyBlockSink& sink) {
+  if (points.normals.size() != points.positions.size() || points.faceNormals.size() != points.positions.size())
+    throw UsageError("points", "positions, normals and face normals differ in size");
+  return bake(rt, mesh, o, sink, &points);
 }
 
 GlossyResult computeGlossyTransfer(Runtime& rt, const Mesh& mesh, const GlossyOptions& o) {

@@ -14,6 +14,7 @@
 #include "prtbake/bvh.h"
 #include "prtbake/clock.h"
 #include "prtbake/error.h"
+#include "prtbake/glossy.h"
 #include "transport/transport_setup.h"
 
 namespace prtbake {
@@ -435,6 +436,42 @@ SeamStats stitchSeams(const Mesh& mesh, const std::vector<float>& uv, const std:
   return st;
 }
 
+// The sh product (lightmap.h): the glossy transfer matrices M at the samples, block by block,
+// reduced at once to D_j = (Â_l/π) Σ_i M_ji l_i per channel (memory: one block of matrices).
+void bakeSh(Runtime& rt, const Mesh& mesh, const SurfacePoints& pts, const std::vector<uint32_t>& texelOf,
+            const ShCoeffs& env, const LightmapOptions& o, LightmapResult& lm) {
+  GlossyOptions g;
+  g.mode = o.bounces > 0 ? TransportMode::Interreflected : TransportMode::Shadowed;
+  g.bounces = std::max(o.bounces, 1);
+  g.orderOut = o.shOrder;
+  g.orderIn = std::max(kMinGlossyOrder, o.order);
+  g.samples = o.samples;
+  g.seed = o.seed;
+  g.albedoOverride = o.albedoOverride;
+  const int no2 = g.orderOut * g.orderOut, ni2 = g.orderIn * g.orderIn;
+  const int ne = std::min(ni2, env.order * env.order), ch = glossyChannels(mesh, g);
+  std::vector<double> factor(size_t(no2), 0.0);
+  for (int j = 0; j < no2; ++j) factor[size_t(j)] = clampedCosineFactor(int(std::sqrt(double(j)) + 1e-9)) / kPi;
+  lm.shOrder = o.shOrder;
+  lm.sh.assign(lm.texels() * size_t(no2) * 3, 0.0f);
+  const GlossyStats st = bakeGlossyTransferAtPoints(rt, mesh, pts, g, [&](size_t first, size_t count, const float* M) {
+    for (size_t i = 0; i < count; ++i) {
+      float* d = &lm.sh[size_t(texelOf[first + i]) * no2 * 3];
+      for (int c = 0; c < 3; ++c) {
+        const float* Mc = M + (i * ch + (ch == 3 ? c : 0)) * size_t(no2) * ni2;
+        for (int j = 0; j < no2; ++j) {
+          double sum = 0;
+          for (int k = 0; k < ne; ++k) sum += double(Mc[size_t(j) * ni2 + k]) * env.rgb[size_t(k)][c];
+          d[3 * j + c] = float(factor[size_t(j)] * sum);
+        }
+      }
+    }
+  });
+  lm.rays += st.rays;
+  if (lm.samples == 0 || o.products == kLightmapSh) lm.samples = o.samples;
+  if (o.products == kLightmapSh) lm.maxStdError = st.maxStdError, lm.meanStdError = st.meanStdError;
+}
+
 }  // namespace
 
 unsigned parseLightmapProducts(const std::string& list) {
@@ -447,6 +484,7 @@ unsigned parseLightmapProducts(const std::string& list) {
     else if (name == "bent") bits |= kLightmapBent;
     else if (name == "irradiance") bits |= kLightmapIrradiance;
     else if (name == "transport") bits |= kLightmapTransport;
+    else if (name == "sh") bits |= kLightmapSh;
     else throw UsageError("--products", "unknown product '" + name + "' (expected ao, bent, irradiance, transport)");
     start = end + 1;
   }
@@ -456,7 +494,7 @@ unsigned parseLightmapProducts(const std::string& list) {
 std::string lightmapProductsName(unsigned products) {
   std::string s;
   for (auto [bit, name] : {std::pair{kLightmapAo, "ao"}, {kLightmapBent, "bent"}, {kLightmapIrradiance, "irradiance"},
-                           {kLightmapTransport, "transport"}})
+                           {kLightmapTransport, "transport"}, {kLightmapSh, "sh"}})
     if (products & bit) s += (s.empty() ? "" : ",") + std::string(name);
   return s;
 }
@@ -491,7 +529,12 @@ int lightmapSize(const Mesh& mesh, const LightmapOptions& o) {
 LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& env, const LightmapOptions& o) {
   const auto tStart = Clock::now();
   validateMesh(mesh, subjectOf(mesh));
-  if (o.products == 0 || (o.products & ~15u)) throw UsageError("--products", "no product asked for");
+  if (o.products == 0 || (o.products & ~kLightmapAllProducts)) throw UsageError("--products", "no product asked for");
+  if (o.products & kLightmapSh) {
+    if (o.shOrder != 2 && o.shOrder != 3) throw UsageError("--sh-order", "must be 2 (L1) or 3 (L2)");
+    if (o.order > kMaxGlossyOrder)
+      throw UsageError("--order", "the sh product takes environment orders up to " + std::to_string(kMaxGlossyOrder));
+  }
   if (o.dilation < 0 || o.dilation > 4096) throw UsageError("--dilation", "must lie in [0, 4096]");
   if (o.bounces < 0 || o.bounces > 16) throw UsageError("--bounces", "must lie in [0, 16]");
   if (o.maxDistance != 0 && !(o.maxDistance > 0 && std::isfinite(o.maxDistance)))
@@ -652,6 +695,7 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
         }
     }
   }
+  if (o.products & kLightmapSh) bakeSh(rt, mesh, pts, texelOf, env, o, lm);
   if (lm.order == 0) lm.order = o.order;
   lm.bakeSeconds = secondsSince(tBake);
 
@@ -665,6 +709,7 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   add(lm.bent, 3);
   add(lm.irradiance, 3);
   add(lm.transport, lm.transportChannels * lm.order * lm.order);
+  add(lm.sh, 3 * lm.shOrder * lm.shOrder);
   dilate(lm, o.dilation, planes, widths);
   if (o.stitchSeams) {
     const SeamStats seams = stitchSeams(mesh, uv, usable, lm, planes, widths);

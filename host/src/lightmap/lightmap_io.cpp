@@ -21,6 +21,7 @@ const char* productName(LightmapProduct p) {
     case kLightmapBent: return "bent";
     case kLightmapIrradiance: return "irradiance";
     case kLightmapTransport: return "transport";
+    case kLightmapSh: return "sh";
   }
   return "?";
 }
@@ -33,6 +34,7 @@ const std::vector<float>& planeOf(const LightmapResult& lm, LightmapProduct p, i
     case kLightmapBent: v = &lm.bent, *width = 3; break;
     case kLightmapIrradiance: v = &lm.irradiance, *width = 3; break;
     case kLightmapTransport: v = &lm.transport, *width = lm.transportChannels * lm.order * lm.order; break;
+    case kLightmapSh: v = &lm.sh, *width = 3 * lm.shOrder * lm.shOrder; break;
   }
   if (!v || v->empty()) throw UsageError("--products", std::string("the lightmap has no ") + productName(p) + " (not asked for)");
   return *v;
@@ -53,6 +55,9 @@ std::string lightmapExrBytes(const LightmapResult& lm, LightmapProduct product, 
   std::vector<std::string> names;
   if (product == kLightmapAo) {
     names = {"Y"};
+  } else if (product == kLightmapSh) {
+    for (int k = 0; k < lm.shOrder * lm.shOrder; ++k)
+      for (char c : {'R', 'G', 'B'}) names.push_back("SH" + std::to_string(k) + "." + c);
   } else if (product != kLightmapTransport) {
     names = {"R", "G", "B"};
   } else {
@@ -77,7 +82,8 @@ std::string lightmapExrBytes(const LightmapResult& lm, LightmapProduct product, 
 }
 
 std::string lightmapKtx2Bytes(const LightmapResult& lm, LightmapProduct product) {
-  if (product == kLightmapTransport) throw UsageError("--format", "the transport goes to OpenEXR, not KTX2");
+  if (product == kLightmapTransport || product == kLightmapSh)
+    throw UsageError("--format", std::string("the ") + productName(product) + " goes to OpenEXR, not KTX2");
   int width = 0;
   const std::vector<float>& plane = planeOf(lm, product, &width);
   std::vector<float> rgba(lm.texels() * 4);
@@ -169,6 +175,7 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
                      {"max_distance", o.maxDistance}, {"dilation", o.dilation}, {"unocclude", o.unocclude},
                      {"stitch_seams", o.stitchSeams}};
   if (o.tolerance > 0) j["parameters"]["tolerance"] = o.tolerance;
+  if (lm.shOrder > 0) j["parameters"]["sh_order"] = lm.shOrder;
   j["conventions"] = {
       {"texel", "texel (x, y) covers u in [x, x+1]/W, v in [y, y+1]/H; row 0 at v = 0 (glTF: the image's top)"},
       {"ao", "cosine-weighted unoccluded fraction of the hemisphere, 1 on an open plane"},
@@ -176,6 +183,9 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
       {"irradiance", "E/pi, linear RGB: the exit radiance of a white Lambertian surface"},
       {"transport", "per-texel PRT transport, real SH with the Condon-Shortley phase, i = l(l+1)+m; "
                     "shade rho * sum_i l_i T_i"},
+      {"sh", "directional irradiance: per RGB channel D_j = (A_l/pi) * projection of the light reaching the "
+             "texel from above its tangent plane, real SH with the Condon-Shortley phase, j = l(l+1)+m; "
+             "a normal n' shades E(n')/pi = sum_j D_j Y_j(n')"},
       {"alpha", "A = 1 where the texel's sample is valid (baked or moved out of geometry), else 0"}};
   j["texels"] = {{"width", lm.width}, {"height", lm.height}, {"baked", lm.baked}, {"moved", lm.moved},
                  {"buried", lm.buried}, {"dilated", lm.dilated},
@@ -185,7 +195,7 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
   j["seams"] = {{"edges", lm.seamEdges}, {"stitched", o.stitchSeams}, {"largest_jump_before", lm.seamJumpBefore},
                 {"largest_jump_after", lm.seamJumpAfter},
                 {"meaning", "the largest difference of the two sides' bilinear lookups along a seam, in the first "
-                            "product's units (ao, bent x, irradiance r or T0)"}};
+                            "product's units (ao, bent x, irradiance r, T0 or SH0 r)"}};
   j["samples"] = {{"per_texel", lm.samples}, {"rays", lm.rays}};
   j["error"] = {{"max_std_error", lm.maxStdError}, {"mean_std_error", lm.meanStdError},
                 {"meaning", "standard error of the transport's coefficient vector (the AO pass when asked for); "
