@@ -16,6 +16,7 @@
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"
 #include "engine_test_helpers.h"
+#include "job_test_helpers.h"
 #include "test_common.h"
 
 using namespace prtbake;
@@ -758,7 +759,7 @@ try {
 
 }  // namespace
 
-TEST_CASE("Lightmap: three.js renders the glTF copy's AO and the irradiance lightmap on uv1 as prtbake samples them",
+TEST_CASE("Lightmap: three.js and Babylon.js render the AO and the irradiance lightmap on uv1 as prtbake samples them",
           "[lightmap][engines][chromium]") {
   // The wall scene of the leak test as a real glTF: TEXCOORD_0 tiles the floor 4 times and gives
   // every face of the wall the whole square (overlapping: a texture's UVs), TEXCOORD_1 is the
@@ -866,4 +867,43 @@ TEST_CASE("Lightmap: three.js renders the glTF copy's AO and the irradiance ligh
   CHECK(aoUv0 > 2.0);
   CHECK(lightFlipped > 2.0);
   CHECK(lightUv0 > 2.0);
+
+  // Babylon.js: the same glTF through Babylon's glTF loader, the AO's PNG (8-bit, as the command
+  // writes it) as a StandardMaterial's lightmapTexture used as a shadow map, the irradiance's
+  // OpenEXR (float) added, both on coordinatesIndex 1 (TEXCOORD_1) and read by Babylon's own
+  // texture loaders with invertY false; the flipped files and coordinatesIndex 0 must fail.
+  std::ofstream(dir + "/ao.png", std::ios::binary) << lightmapAoPngBytes(lm, 8);
+  std::ofstream(dir + "/ao_flipped.png", std::ios::binary) << lightmapAoPngBytes(flipped, 8);
+  std::ofstream(dir + "/irradiance.exr", std::ios::binary) << lightmapExrBytes(lm, kLightmapIrradiance, false);
+  std::ofstream(dir + "/irradiance_flipped.exr", std::ios::binary) << lightmapExrBytes(flipped, kLightmapIrradiance, false);
+  std::ofstream(page) << test::fillPage(
+      test::readText(js + "babylon_lightmap.html"),
+      {{"__JS__", std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js"},
+       {"__W__", std::to_string(W)},
+       {"__GLTF__", "./good.glb"},
+       {"__SHOTS__", R"([{"name": "ao", "file": "./ao.png", "shadowmap": true, "channel": 1},
+                      {"name": "ao_flipped", "file": "./ao_flipped.png", "shadowmap": true, "channel": 1},
+                      {"name": "ao_uv0", "file": "./ao.png", "shadowmap": true, "channel": 0},
+                      {"name": "light", "file": "./irradiance.exr", "shadowmap": false, "channel": 1, "flipV": true},
+                      {"name": "light_flipped", "file": "./irradiance_flipped.exr", "shadowmap": false, "channel": 1, "flipV": true},
+                      {"name": "light_uv0", "file": "./irradiance.exr", "shadowmap": false, "channel": 0, "flipV": true},
+                      {"name": "light_no_vscale", "file": "./irradiance.exr", "shadowmap": false, "channel": 1}])"}});
+  const nlohmann::json bab = test::chromiumResult(chromium, page)["shots"];
+  const double bAo = mean(bab["ao"], lm.ao, 1, 1), bAoFlipped = mean(bab["ao_flipped"], lm.ao, 1, 1),
+               bAoUv0 = mean(bab["ao_uv0"], lm.ao, 1, 1), bLight = mean(bab["light"], lm.irradiance, 3, 1),
+               bLightFlipped = mean(bab["light_flipped"], lm.irradiance, 3, 1),
+               bLightUv0 = mean(bab["light_uv0"], lm.irradiance, 3, 1),
+               bLightNoVScale = mean(bab["light_no_vscale"], lm.irradiance, 3, 1);
+  // The same 2-level bound (Babylon's canvas is read back in 8 bits: ≤ 0.5 level more).
+  INFO("Babylon.js, mean |delta| (linear 8-bit levels): AO " << bAo << " (V flipped " << bAoFlipped << ", uv0 " << bAoUv0
+                                                            << "); irradiance " << bLight << " (V flipped " << bLightFlipped
+                                                            << ", uv0 " << bLightUv0 << ", without the V flip "
+                                                            << bLightNoVScale << ")");
+  CHECK(bAo <= 2.0);
+  CHECK(bLight <= 2.0);
+  CHECK(bAoFlipped > 2.0);
+  CHECK(bAoUv0 > 2.0);
+  CHECK(bLightFlipped > 2.0);
+  CHECK(bLightUv0 > 2.0);
+  CHECK(bLightNoVScale > 2.0);  // Babylon's EXR rows are bottom-up: the V flip docs/lightmap.md gives is needed
 }
