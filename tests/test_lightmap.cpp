@@ -907,3 +907,44 @@ TEST_CASE("Lightmap: three.js and Babylon.js render the AO and the irradiance li
   CHECK(bLightUv0 > 2.0);
   CHECK(bLightNoVScale > 2.0);  // Babylon's EXR rows are bottom-up: the V flip docs/lightmap.md gives is needed
 }
+
+TEST_CASE("Lightmap: real files: texture UVs whose charts overlap are refused, a real box's bake", "[lightmap][data]") {
+  // Files nobody here made. The Duck's and Mary's only UV sets are texture UVs (charts share
+  // texels: a texture atlas, not a lightmap): refused in one line naming the file and the texel,
+  // exit 1, nothing written. BoxTextured's UV set 0 holds its six faces apart: it bakes, and the
+  // box is convex, so every texel takes the closed form of an unoccludable point: AO 1.
+  const std::string duck = test::dataFile("meshes/gltf/Duck.glb"), mary = test::dataFile("meshes/obj/mary.obj"),
+                    box = test::dataFile("meshes/gltf/BoxTextured.glb");
+  PRTBAKE_SKIP_IF_NO_DATA(duck);
+  PRTBAKE_SKIP_IF_NO_DATA(mary);
+  PRTBAKE_SKIP_IF_NO_DATA(box);
+  const std::string dir = test::tempDir("lightmap-real");
+  for (const std::string& f : {duck, mary}) {
+    const auto r = test::runCli("lightmap '" + f + "' -o '" + dir + "/out' --size 256 --samples 16 --uv 0");
+    INFO(r.output);
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find(f + ": UV charts overlap: texel (") != std::string::npos);
+    CHECK_FALSE(test::fileExists(dir + "/out"));
+  }
+  const auto ok = test::runCli("lightmap '" + box + "' -o '" + dir + "/box' --size 64 --samples 16 --gltf '" + dir +
+                               "/box.glb'");
+  INFO(ok.output);
+  REQUIRE(ok.exitCode == 0);
+  const ExrImage ao = readExr(dir + "/box/ao.exr");
+  size_t valid = 0;
+  float lowest = 1;
+  for (size_t i = 0; i < ao.channel("A")->size(); ++i)
+    if ((*ao.channel("A"))[i] == 1.0f) ++valid, lowest = std::min(lowest, (*ao.channel("Y"))[i]);
+  CHECK(valid > 1000);
+  CHECK(lowest > 1.0f - 1e-6f);  // float: 2√π T_0 of the closed form
+  if (test::nodeReady()) {
+    const test::CliResult r = test::runShell("node '" + std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/gltf_validate.mjs' '" +
+                                             dir + "/box.glb'");
+    INFO(r.output.substr(0, 3000));
+    REQUIRE(r.exitCode == 0);
+    const nlohmann::json rep = nlohmann::json::parse(r.output);
+    CHECK(rep["errors"] == 0);
+  } else {
+    test::skipPart("tests/js/node_modules absent: glTF-Validator not run on the real box's copy");
+  }
+}
