@@ -219,7 +219,7 @@ std::vector<float> rows3(const py::object& v, const char* name, py::ssize_t rows
 // A mesh from arrays (read once into the library's layout; float32 C-order arrays are copied
 // as they are, others converted).
 std::shared_ptr<Mesh> meshFromArrays(const py::object& positions, const py::object& indices, const py::object& normals,
-                                     const py::object& albedo, const py::object& uvs) {
+                                     const py::object& albedo, const py::object& uvs, const py::object& tangents) {
   auto mesh = std::make_shared<Mesh>();
   mesh->positions = rows3(positions, "positions", -1);
   const py::ssize_t nv = py::ssize_t(mesh->positions.size() / 3);
@@ -246,6 +246,12 @@ std::shared_ptr<Mesh> meshFromArrays(const py::object& positions, const py::obje
       mesh->uvs.emplace_back(a.data(), a.data() + a.size());
       mesh->uvMissing.emplace_back();
     }
+  }
+  if (!tangents.is_none()) {  // (V, 4): xyz and w = ±1, glTF's TANGENT
+    const FloatArray a = FloatArray::ensure(tangents);
+    if (!a || a.ndim() != 2 || a.shape(1) != 4 || a.shape(0) != nv)
+      throw UsageError("tangents", "must be a (" + std::to_string(nv) + ", 4) array (xyz, w = +1 or -1)");
+    mesh->tangents.assign(a.data(), a.data() + a.size());
   }
   py::gil_scoped_release nogil;
   fillMissingNormals(*mesh);
@@ -419,6 +425,7 @@ py::object lightmapProduct(const py::object& meshObj, const py::kwargs& kw) {
   py::dict f;
   f["ao"] = r.ao.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.ao), {h, w}));
   f["bent"] = r.bent.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.bent), {h, w, 3}));
+  f["bent_tangent"] = r.bentTangent.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.bentTangent), {h, w, 3}));
   f["irradiance"] = r.irradiance.empty() ? py::object(py::none()) : py::object(adopt(std::move(r.irradiance), {h, w, 3}));
   f["transport"] = r.transport.empty() ? py::object(py::none())
                    : r.transportChannels == 1 ? py::object(adopt(std::move(r.transport), {h, w, nc}))
@@ -868,7 +875,7 @@ PYBIND11_MODULE(_prtbake, m) {
 
   py::class_<Mesh, std::shared_ptr<Mesh>>(m, "Mesh")
       .def(py::init(&meshFromArrays), py::arg("positions"), py::arg("indices"), py::arg("normals") = py::none(),
-           py::arg("albedo") = py::none(), py::arg("uvs") = py::none())
+           py::arg("albedo") = py::none(), py::arg("uvs") = py::none(), py::arg("tangents") = py::none())
       .def_static(
           "load", [](const py::object& file) {
             if (!isPath(file)) throw UsageError("path", "must be a path");

@@ -19,10 +19,14 @@ int runLightmap(const CommandLine& cl) {
   const std::string format = cl.getChoice("format", "exr", {"exr", "ktx2", "both"});
   // The outputs: every product asked for as OpenEXR and/or KTX2 (the transport: OpenEXR only),
   // the AO also as PNG, and the sidecar.
+  // bent also in tangent space where the mesh has tangents.
   const unsigned products = parseLightmapProducts(cl.has("products") ? cl.get("products") : "ao");
+  auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
+  const Mesh mesh = loadMesh(input);
   nlohmann::json outputs = {{"json", dir + "/lightmap.json"}};
-  for (const std::string name : {"ao", "bent", "irradiance", "transport", "sh"}) {
-    if (!(products & parseLightmapProducts(name))) continue;
+  for (const std::string name : {"ao", "bent", "bent_tangent", "irradiance", "transport", "sh"}) {
+    if (!(products & parseLightmapProducts(name.substr(0, name.find('_'))))) continue;
+    if (name == "bent_tangent" && mesh.tangents.empty()) continue;
     const std::string base = dir + "/" + name;
     const bool exrOnly = name == "transport" || name == "sh";
     if (format != "ktx2" || exrOnly) outputs[name + "_exr"] = base + ".exr";
@@ -33,8 +37,6 @@ int runLightmap(const CommandLine& cl) {
   const nlohmann::json p = productParams(cl, "lightmap", outputs);
   const LightmapOptions o = jobs::lightmapOptionsFrom(p);
 
-  auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
-  const Mesh mesh = loadMesh(input);
   const ShCoeffs env = jobs::probeEnvironment(p, [&]() -> Runtime& { return *device.get(); }, nullptr);
   Runtime& rt = jobs::processRuntime(cl.device());
   const int size = lightmapSize(mesh, o);
@@ -61,7 +63,8 @@ PRTBAKE_COMMAND(Command{
     "       [--samples N | --tolerance E] [--env SH.json|ENVMAP] [--order N] [--sh-order 2|3]\n"
     "       [--max-distance D] [--bounces B] [--format exr|ktx2|both] [--gltf OUT.glb|OUT.gltf]\n"
     "Writes DIR/<product>.exr (or .ktx2, RGBA16F; transport and sh: OpenEXR only) for each product asked\n"
-    "for (default ao; alpha: the texel's validity), DIR/ao.png (linear, 8 or 16 bits) with ao, and\n"
+    "for (default ao; alpha: the texel's validity; bent also as bent_tangent, in tangent space, where the\n"
+    "mesh has tangents), DIR/ao.png (linear, 8 or 16 bits) with ao, and\n"
     "DIR/lightmap.json (counts, samples, timings); --gltf also a copy of the glTF whose materials use the\n"
     "AO as occlusionTexture on the lightmap's UV set.",
     productOptions("lightmap", {{"output", true, "the output directory (-o)"},

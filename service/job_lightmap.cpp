@@ -45,7 +45,7 @@ std::vector<std::pair<std::string, std::string>> lightmapOutputBytes(const std::
   std::vector<std::pair<std::string, std::string>> files;
   const std::pair<const char*, LightmapProduct> products[] = {
       {"ao", kLightmapAo}, {"bent", kLightmapBent}, {"irradiance", kLightmapIrradiance}, {"transport", kLightmapTransport},
-      {"sh", kLightmapSh}};
+      {"sh", kLightmapSh}, {"bent_tangent", kLightmapBentTangent}};
   for (const auto& [kind, path] : outputs) {
     for (const auto& [name, bit] : products) {
       if (kind == std::string(name) + "_exr") files.emplace_back(path, lightmapExrBytes(lm, bit, half));
@@ -73,6 +73,11 @@ ExecResult runLightmap(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const LightmapOptions o = lightmapOptionsFrom(p);
   const Mesh mesh = loadMesh(job.input);
+  for (const auto& [kind, path] : ctx.outputPaths)
+    if (kind.rfind("bent_tangent", 0) == 0 && mesh.tangents.empty())
+      throw InputError(job.input, "has no tangents for " + kind + ": " +
+                                      (mesh.tangentMissing.empty() ? "tangents come from glTF's TANGENT attribute"
+                                                                   : mesh.tangentMissing));
   std::vector<std::string> read = mesh.inputFiles;
   const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
   const LightmapResult lm = computeLightmap(ctx.runtime(), mesh, env, o);
@@ -89,7 +94,7 @@ JobType lightmapJobType() {
   JobType t;
   t.name = "lightmap";
   t.input = InputKind::File;
-  t.outputKinds = {"ao_exr", "ao_ktx2", "ao_png", "bent_exr", "bent_ktx2", "irradiance_exr", "irradiance_ktx2",
+  t.outputKinds = {"ao_exr", "ao_ktx2", "ao_png", "bent_exr", "bent_ktx2", "bent_tangent_exr", "bent_tangent_ktx2", "irradiance_exr", "irradiance_ktx2",
                    "transport_exr", "sh_exr", "gltf", "json"};
   t.keys = {integer("uv", nullptr, 0, 7, "the UV set (TEXCOORD_n) of the lightmap (none: 1 where the mesh has it, else 0)"),
             integer("size", nullptr, 1, kMaxLightmapSize, "the lightmap's width and height in texels (none: 512, or from texels_per_unit)"),

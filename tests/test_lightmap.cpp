@@ -384,6 +384,48 @@ std::array<double, 9> quarterSphereIntegrals(double sx) {
 
 }  // namespace
 
+TEST_CASE("Lightmap: the bent normal in tangent space follows the mesh's tangent frame", "[lightmap]") {
+  // The wall scene of the bent-normal test with tangents on every vertex: the floor's tangent
+  // +x with w = +1 (bitangent n × t = +y), or +y with w = −1 (bitangent −(z × y) = +x). The
+  // object-space B = (−2, 0, π)/√(4 + π²) near the wall reads (−2, 0, π)/… in the first frame and
+  // (0, −2, π)/… in the second; a wrong handedness or a swapped axis fails.
+  const double norm = std::sqrt(4 + kPi * kPi);
+  struct Frame {
+    float t[3], w;
+    double expect[3];
+  };
+  for (const Frame& f : {Frame{{1, 0, 0}, 1, {-2 / norm, 0, kPi / norm}}, Frame{{0, 1, 0}, -1, {0, -2 / norm, kPi / norm}}}) {
+    Mesh m;
+    addFloor(m, 1, {0, 0, 0.5, 1});
+    const Vec3 w[4] = {{0.2, -1, 0}, {0.2, -1, 3}, {0.2, 1, 3}, {0.2, 1, 0}};
+    addQuad(m, w, {0.6, 0.1, 0.9, 0.9});
+    for (size_t v = 0; v < m.vertexCount(); ++v)  // the wall's own tangent: +y (unused by the test)
+      m.tangents.insert(m.tangents.end(), v < 4 ? std::initializer_list<float>{f.t[0], f.t[1], f.t[2], f.w}
+                                                : std::initializer_list<float>{0, 1, 0, 1});
+    LightmapOptions o;
+    o.size = 32;
+    o.samples = 1024;
+    o.products = kLightmapBent;
+    const LightmapResult lm = computeLightmap(test::runtime(), m, constantEnv(1), o);
+    REQUIRE(lm.bentTangent.size() == lm.texels() * 3);
+    const size_t nearWall = size_t(16) * 32 + 9, far = size_t(16) * 32 + 2;
+    INFO("tangent (" << f.t[0] << ", " << f.t[1] << ", " << f.t[2] << "), w " << f.w << ": ("
+                     << lm.bentTangent[3 * nearWall] << ", " << lm.bentTangent[3 * nearWall + 1] << ", "
+                     << lm.bentTangent[3 * nearWall + 2] << ")");
+    // Tolerance 0.02: as the object-space test (the same rays).
+    for (int c = 0; c < 3; ++c) CHECK(std::abs(lm.bentTangent[3 * nearWall + c] - f.expect[c]) < 0.02);
+    CHECK(lm.bentTangent[3 * far + 2] > 0.95);
+  }
+  // Without tangents there is no tangent-space image.
+  Mesh plain;
+  addFloor(plain, 1, {0, 0, 1, 1});
+  LightmapOptions o;
+  o.size = 8;
+  o.samples = 16;
+  o.products = kLightmapBent;
+  CHECK(computeLightmap(test::runtime(), plain, constantEnv(1), o).bentTangent.empty());
+}
+
 TEST_CASE("Lightmap: directional (SH) irradiance at the foot of a wall matches the quarter sphere's closed form",
           "[lightmap]") {
   // The wall of the bent-normal test: under a constant white sky (L = 1, l_0 = √(4π)) the light
@@ -579,6 +621,37 @@ TEST_CASE("Lightmap: glTF TEXCOORD_n and OBJ vt load as UV sets", "[lightmap]") 
   REQUIRE(gltf.hasUvSet(1));
   CHECK(gltf.uvs[1] == std::vector<float>{0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f});
   CHECK(gltf.uvs[0] == std::vector<float>{0, 0, 1, 0, 0, 1});
+  CHECK(gltf.tangents.empty());
+  CHECK(gltf.tangentMissing.find("has no TANGENT") != std::string::npos);
+  // TANGENT (VEC4): under a node that mirrors x, the tangent's x flips and so does w (the
+  // bitangent w n × t must stay the image of the file's); w other than ±1 is refused.
+  auto tangentGltf = [&](const std::string& name, float w, const char* node) {
+    const float t[] = {1, 0, 0, w, 0.6f, 0.8f, 0, w, 0, 1, 0, w};
+    {
+      std::ofstream b(dir + "/" + name + ".bin", std::ios::binary);
+      b.write(reinterpret_cast<const char*>(data), 36);
+      b.write(reinterpret_cast<const char*>(t), sizeof t);
+    }
+    std::ofstream f(dir + "/" + name + ".gltf");
+    f << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [)" << node << R"(],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TANGENT": 1}}]}],
+      "buffers": [{"uri": ")" << name << R"(.bin", "byteLength": 84}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 48}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC4"}]})";
+    return dir + "/" + name + ".gltf";
+  };
+  const Mesh tangent = loadMesh(tangentGltf("tangent", 1, R"({"mesh": 0})"));
+  CHECK(tangent.tangents == std::vector<float>{1, 0, 0, 1, 0.6f, 0.8f, 0, 1, 0, 1, 0, 1});
+  const Mesh mirrored = loadMesh(tangentGltf("mirrored", -1, R"({"mesh": 0, "scale": [-1, 1, 1]})"));
+  REQUIRE(mirrored.tangents.size() == 12);
+  for (int v = 0; v < 3; ++v) {
+    const float want[3][3] = {{-1, 0, 0}, {-0.6f, 0.8f, 0}, {0, 1, 0}};
+    for (int c = 0; c < 3; ++c) CHECK(std::abs(mirrored.tangents[4 * v + c] - want[v][c]) < 1e-6f);
+    CHECK(mirrored.tangents[4 * v + 3] == 1.0f);
+  }
+  CHECK_THROWS_WITH(loadMesh(tangentGltf("badw", 0.5f, R"({"mesh": 0})")),
+                    Catch::Contains("TANGENT: vertex 0 has w = 0.5") && Catch::Contains("badw.gltf"));
 }
 
 TEST_CASE("Lightmap: the command writes every output or none, and refuses bad inputs in one line", "[lightmap]") {
@@ -600,6 +673,18 @@ TEST_CASE("Lightmap: the command writes every output or none, and refuses bad in
                         "sh.exr", "lightmap.json"})
     CHECK(test::fileExists(dir + "/out/" + f));
   CHECK_FALSE(test::fileExists(dir + "/out/sh.ktx2"));
+  CHECK_FALSE(test::fileExists(dir + "/out/bent_tangent.exr"));  // an OBJ has no tangents
+  {  // A job that asks for it anyway: the mesh is named, nothing written.
+    std::ofstream(dir + "/tangent_job.json")
+        << R"({"jobs": [{"id": "t", "type": "lightmap", "input": "floor.obj", "products": "bent", "size": 8,
+             "samples": 16, "outputs": {"bent_tangent_exr": "tout/bt.exr", "json": "tout/lm.json"}}]})";
+    const auto r = test::runCli("run '" + dir + "/tangent_job.json'");
+    INFO(r.output);
+    CHECK(r.exitCode != 0);
+    CHECK(r.output.find("floor.obj: has no tangents for bent_tangent_exr") != std::string::npos);
+    CHECK_FALSE(test::fileExists(dir + "/tout/bt.exr"));  // (the runner makes the job's directories first)
+    CHECK_FALSE(test::fileExists(dir + "/tout/lm.json"));
+  }
   // The L1 map of an open floor under white, shaded along its normal (+y): E/π = 1, half from
   // D_0 Y_0 and half from the L1 band (the hemisphere's light has no L2 part along n, so the
   // truncation is exact here). Tolerance 0.01: 16 uniform rays estimate ∫ Y_1 over the

@@ -128,6 +128,7 @@ class LightmapResult(_Result):
     """A lightmap (docs/lightmap.md): per-texel products on the mesh's UV set, row 0 at v = 0."""
     ao: Optional[_np.ndarray]          # (H, W) float32, cosine-weighted visibility (None: not asked for)
     bent: Optional[_np.ndarray]        # (H, W, 3) float32, unit bent normals, object space
+    bent_tangent: Optional[_np.ndarray]  # (H, W, 3) float32, the same in tangent space (meshes with glTF tangents)
     irradiance: Optional[_np.ndarray]  # (H, W, 3) float32, E/pi, linear RGB
     transport: Optional[_np.ndarray]   # (H, W, n²) or (H, W, 3, n²) float32, per-texel PRT transport
     sh: Optional[_np.ndarray]          # (H, W, m², 3) float32, directional irradiance: E(n')/pi = sum_j sh[..., j, :] Y_j(n')

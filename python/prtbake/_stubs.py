@@ -46,7 +46,8 @@ def stubs() -> str:
         "",
         "class Mesh:",
         "    def __init__(self, positions: ArrayLike, indices: ArrayLike, normals: Optional[ArrayLike] = None,",
-        "                 albedo: Optional[ArrayLike] = None, uvs: Optional[Sequence[ArrayLike]] = None) -> None: ...",
+        "                 albedo: Optional[ArrayLike] = None, uvs: Optional[Sequence[ArrayLike]] = None,\n"
+        "                 tangents: Optional[ArrayLike] = None) -> None: ...",
         "    @staticmethod",
         "    def load(path: StrPath) -> Mesh: ...",
         "    positions: NDArray[np.float32]",

@@ -577,6 +577,18 @@ def test_lightmap_matches_the_command(tmp_path):
     tris = np.array([[0, 3, 2], [0, 2, 1], [4, 5, 6], [4, 6, 7]])
     a = prtbake.lightmap(prtbake.Mesh(v, tris, normals=normals, uvs=[uv]), size=32, samples=64, products="ao,bent")
     assert np.allclose(a.ao, r.ao, atol=1e-6) and np.array_equal(a.state, r.state)
+    # With tangents (+x everywhere, w = +1): bent also in tangent space, its first component the
+    # object-space x (t = x is orthogonal to both faces' normals), unit length; none without.
+    assert a.bent_tangent is None
+    tangents = np.tile(np.array([[1, 0, 0, 1]], np.float32), (8, 1))
+    t = prtbake.lightmap(prtbake.Mesh(v, tris, normals=normals, uvs=[uv], tangents=tangents), size=32, samples=64,
+                         products="bent")
+    valid = (t.state == 1) | (t.state == 2)
+    assert t.bent_tangent.shape == (32, 32, 3) and valid.sum() > 500
+    assert np.allclose(t.bent_tangent[valid][:, 0], t.bent[valid][:, 0], atol=1e-5)
+    assert np.allclose(np.linalg.norm(t.bent_tangent[valid], axis=1), 1, atol=1e-5)
+    with pytest.raises(ValueError, match="tangents"):
+        prtbake.Mesh(v, tris, tangents=tangents[:3])
     with pytest.raises(prtbake.InputError, match="no UV set 1"):
         prtbake.lightmap(obj, uv=1)
     with pytest.raises(ValueError, match="size"):

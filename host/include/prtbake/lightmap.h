@@ -11,6 +11,9 @@
 //               the maximum distance D (none: the whole scene); 1 for an open plane.
 //   bent        the cosine-weighted mean unoccluded direction (unit; object space):
 //               B ∝ ∫ V_D(p, ω) (n·ω) ω dω, from the order-2 transport; n where all is occluded.
+//               When the mesh has tangents (glTF TANGENT), also in tangent space: (B·t, B·b, B·n)
+//               with t the interpolated tangent made orthogonal to n and b = w n × t (glTF's
+//               bitangent), the frame a normal map's and Filament's bentNormal input use.
 //   irradiance  E(p)/π = Σ_i l_i T_i(p) per linear RGB channel under the environment's radiance
 //               coefficients l (shadowed, or interreflected with `bounces`): the exit radiance
 //               of a white Lambertian surface.
@@ -57,6 +60,8 @@ enum LightmapProduct : unsigned {
   kLightmapIrradiance = 4u,
   kLightmapTransport = 8u,
   kLightmapSh = 16u,
+  // Not a product to ask for: bent's image in tangent space (meshes with tangents).
+  kLightmapBentTangent = 32u,
 };
 constexpr unsigned kLightmapAllProducts = 31u;
 // "ao,bent,irradiance,transport,sh" (any subset, comma-separated) → bits; UsageError otherwise.
@@ -95,6 +100,7 @@ struct LightmapResult {
   std::vector<uint8_t> state;       // W × H TexelState, row 0 first
   std::vector<float> ao;            // W × H
   std::vector<float> bent;          // W × H × 3
+  std::vector<float> bentTangent;   // W × H × 3, bent in tangent space (empty: no tangents)
   std::vector<float> irradiance;    // W × H × 3 (E/π, linear RGB)
   std::vector<float> transport;     // W × H × channels × order²
   std::vector<float> sh;            // W × H × shOrder² × 3: per coefficient j, R G B

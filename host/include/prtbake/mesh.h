@@ -23,6 +23,12 @@ struct Mesh {
   // empty, and uvMissing[k] names the first primitive (or OBJ face) without it.
   std::vector<std::vector<float>> uvs;
   std::vector<std::string> uvMissing;
+  // glTF TANGENT: 4 floats per vertex, xyz a unit vector in the world frame and w = ±1 the
+  // bitangent's sign (bitangent = w · normal × tangent, glTF's definition; a mirroring node
+  // transform flips w). Empty unless every triangle primitive has it; tangentMissing then names
+  // the first primitive without it.
+  std::vector<float> tangents;
+  std::string tangentMissing;
 
   // Where each glTF primitive instance's vertices live in this mesh (for the glTF
   // export): vertices [firstVertex, firstVertex + vertexCount) are the primitive's

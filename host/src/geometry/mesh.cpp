@@ -99,6 +99,8 @@ void validateMesh(const Mesh& mesh, const std::string& subject) {
   const size_t nv = mesh.vertexCount();
   if ((!mesh.normals.empty() && mesh.normals.size() != 3 * nv) || mesh.albedo.size() != 3 * nv)
     throw InputError(subject, "malformed mesh (normal or albedo count differs from the vertex count)");
+  if (!mesh.tangents.empty() && mesh.tangents.size() != 4 * nv)
+    throw InputError(subject, "malformed mesh (the tangent count differs from the vertex count)");
   for (size_t i = 0; i < mesh.indices.size(); ++i)
     if (mesh.indices[i] >= nv)
       throw InputError(subject, "triangle " + std::to_string(i / 3) + " uses vertex " +
@@ -262,6 +264,10 @@ void appendMesh(Mesh& a, const Mesh& b) {
     }
     a.uvs[k].insert(a.uvs[k].end(), b.uvs[k].begin(), b.uvs[k].end());
   }
+  if (!aEmpty && (a.tangents.empty() || b.tangents.empty()))
+    a.tangents.clear();
+  else
+    a.tangents.insert(a.tangents.end(), b.tangents.begin(), b.tangents.end());
   a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
   a.normals.insert(a.normals.end(), b.normals.begin(), b.normals.end());
   a.albedo.insert(a.albedo.end(), b.albedo.begin(), b.albedo.end());

@@ -58,6 +58,7 @@ Mat4 nodeMatrix(const tinygltf::Node& n) {
 struct PrimitiveAttributes {
   std::vector<double> position, normal, color;  // 3 per vertex
   std::vector<std::vector<double>> uv;          // TEXCOORD_k: 2 per vertex (empty: none)
+  std::vector<double> tangent;                  // TANGENT: 4 per vertex (empty: none)
   size_t vertexCount = 0;
 };
 
@@ -75,6 +76,13 @@ PrimitiveAttributes readAttributes(const tinygltf::Model& model, const tinygltf:
     a.normal = detail::readAccessor(model, it->second, 3, path, what + " NORMAL", a.vertexCount);
   if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end())
     a.color = detail::readAccessor(model, it->second, 3, path, what + " COLOR_0", a.vertexCount);
+  if (auto it = prim.attributes.find("TANGENT"); it != prim.attributes.end()) {
+    a.tangent = detail::readAccessor(model, it->second, 4, path, what + " TANGENT", a.vertexCount);
+    for (size_t v = 0; v < a.vertexCount; ++v)  // glTF 2.0: w is +1 or −1
+      if (!(std::abs(std::abs(a.tangent[4 * v + 3]) - 1.0) <= 1e-3))
+        throw InputError(path, what + " TANGENT: vertex " + std::to_string(v) + " has w = " +
+                                   std::to_string(a.tangent[4 * v + 3]) + " (glTF 2.0 requires +1 or -1)");
+  }
   for (int k = 0; k < kMaxUvSets; ++k) {
     const std::string name = "TEXCOORD_" + std::to_string(k);
     if (auto it = prim.attributes.find(name); it != prim.attributes.end()) {
@@ -193,6 +201,19 @@ bool appendVertices(const PrimitiveAttributes& attrs, const Mat4& world, const s
     for (double q : w) mesh.normals.push_back(float(q));
     for (int ch = 0; ch < 3; ++ch) mesh.albedo.push_back(float(base[ch] * (col.empty() ? 1.0 : col[3 * i + ch])));
   }
+  // Tangents: directions, so the upper 3×3 itself, renormalised; a mirror flips the handedness.
+  // NaN where this primitive has none (loadGltf then drops them all).
+  for (size_t i = 0; i < attrs.vertexCount; ++i) {
+    double t[4] = {std::numeric_limits<double>::quiet_NaN(), 0, 0, 0};
+    if (!attrs.tangent.empty()) {
+      const double* q = &attrs.tangent[4 * i];
+      for (int r = 0; r < 3; ++r) t[r] = m[r] * q[0] + m[4 + r] * q[1] + m[8 + r] * q[2];
+      const double len = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+      for (int r = 0; r < 3; ++r) t[r] = len > 1e-12 ? t[r] / len : 0.0;
+      t[3] = q[3] < 0 ? -sgn : sgn;
+    }
+    for (double q : t) mesh.tangents.push_back(float(q));
+  }
   // UV sets: kept per vertex (NaN where this primitive lacks the set; loadGltf drops such sets).
   for (size_t k = 0; k < mesh.uvs.size(); ++k) {
     const bool has = k < attrs.uv.size() && !attrs.uv[k].empty();
@@ -217,6 +238,8 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
     for (size_t k = 0; k < mesh.uvMissing.size(); ++k)
       if (mesh.uvMissing[k].empty() && (k >= attrs.uv.size() || attrs.uv[k].empty()))
         mesh.uvMissing[k] = what + " (node " + std::to_string(nodeIndex) + ") has no TEXCOORD_" + std::to_string(k);
+  if (!tris.empty() && attrs.tangent.empty() && mesh.tangentMissing.empty())
+    mesh.tangentMissing = what + " (node " + std::to_string(nodeIndex) + ") has no TANGENT";
   const bool mirrored = appendVertices(attrs, world, baseColor(model, prim), mesh);
   for (size_t t = 0; t + 2 < tris.size(); t += 3) {
     if (mirrored)
@@ -271,6 +294,7 @@ Mesh loadGltf(const std::string& path) {
   for (int r : detail::gltfRootNodes(model)) walk(r, identity());
   for (size_t k = 0; k < mesh.uvs.size(); ++k)
     if (!mesh.uvMissing[k].empty() || mesh.indices.empty()) mesh.uvs[k].clear();
+  if (!mesh.tangentMissing.empty() || mesh.indices.empty()) mesh.tangents.clear();
   return mesh;
 }
 

@@ -436,6 +436,27 @@ SeamStats stitchSeams(const Mesh& mesh, const std::vector<float>& uv, const std:
   return st;
 }
 
+// The tangent frame of a sample (glTF's: the interpolated tangent made orthogonal to the unit
+// normal n, bitangent w n × t with w the sign of the interpolated handedness), appended to
+// `frames` as t, b; zeros where the tangents give no direction off n.
+void tangentFrame(const Mesh& mesh, const TexelHit& h, const float* n, std::vector<float>& frames) {
+  double t[3] = {0, 0, 0}, w = 0;
+  for (int k = 0; k < 3; ++k) {
+    const float* q = &mesh.tangents[4 * size_t(mesh.indices[3 * size_t(h.tri) + k])];
+    for (int c = 0; c < 3; ++c) t[c] += h.w[k] * q[c];
+    w += h.w[k] * q[3];
+  }
+  const double d = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
+  for (int c = 0; c < 3; ++c) t[c] -= d * n[c];
+  const double len = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+  const double s = len > 1e-9 ? 1 / len : 0.0, sign = w < 0 ? -1.0 : 1.0;
+  for (double& c : t) c *= s;
+  const double b[3] = {sign * (n[1] * t[2] - n[2] * t[1]), sign * (n[2] * t[0] - n[0] * t[2]),
+                       sign * (n[0] * t[1] - n[1] * t[0])};
+  for (double c : t) frames.push_back(float(c));
+  for (double c : b) frames.push_back(float(c));
+}
+
 // The sh product (lightmap.h): the glossy transfer matrices M at the samples, block by block,
 // reduced at once to D_j = (Â_l/π) Σ_i M_ji l_i per channel (memory: one block of matrices).
 void bakeSh(Runtime& rt, const Mesh& mesh, const SurfacePoints& pts, const std::vector<uint32_t>& texelOf,
@@ -570,8 +591,9 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   rasterise(mesh, uv, W, H, usable, charts, hits);
   for (size_t t = 0; t < nt; ++t) lm.charts += usable[t] && charts.find(uint32_t(t)) == t;
 
-  // The samples.
+  // The samples (and with tangents, each one's tangent frame t, b: 6 floats).
   SurfacePoints pts;
+  std::vector<float> frames;
   std::vector<uint32_t> texelOf;
   std::vector<float> reach;
   for (size_t i = 0; i < hits.size(); ++i) {
@@ -591,6 +613,7 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
     double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (!(len > 1e-12)) n[0] = fn[0], n[1] = fn[1], n[2] = fn[2], len = 1;
     for (int c = 0; c < 3; ++c) pts.normals.push_back(float(n[c] / len)), pts.faceNormals.push_back(float(fn[c]));
+    if (!mesh.tangents.empty()) tangentFrame(mesh, h, &pts.normals[pts.normals.size() - 3], frames);
     // The texel's half-width: a sample moves out only where the texel's own area reaches outside.
     reach.push_back(float(0.5 * worldPerTexel[size_t(h.tri)]));
   }
@@ -646,13 +669,22 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
     shEval(2, 1, 0, 0, ax), shEval(2, 0, 1, 0, ay), shEval(2, 0, 0, 1, az);
     if (o.products & kLightmapAo) lm.ao.assign(lm.texels(), 0.0f);
     if (o.products & kLightmapBent) lm.bent.assign(lm.texels() * 3, 0.0f);
+    if ((o.products & kLightmapBent) && !frames.empty()) lm.bentTangent.assign(lm.texels() * 3, 0.0f);
     for (size_t i = 0; i < ns; ++i) {
       const float* T = r.vertex(i);
       if (o.products & kLightmapAo) lm.ao[texelOf[i]] = float(std::clamp(T[0] / y0, 0.0, 1.0));
       if (o.products & kLightmapBent) {
         double b[3] = {T[3] / ax[3], T[1] / ay[1], T[2] / az[2]};
         const double len = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-        for (int c = 0; c < 3; ++c) lm.bent[3 * size_t(texelOf[i]) + c] = len > 1e-9 ? float(b[c] / len) : pts.normals[3 * i + c];
+        float* B = &lm.bent[3 * size_t(texelOf[i])];
+        for (int c = 0; c < 3; ++c) B[c] = len > 1e-9 ? float(b[c] / len) : pts.normals[3 * i + c];
+        if (!frames.empty()) {
+          const float *t = &frames[6 * i], *bt = t + 3, *n = &pts.normals[3 * i];
+          float* out = &lm.bentTangent[3 * size_t(texelOf[i])];
+          out[0] = B[0] * t[0] + B[1] * t[1] + B[2] * t[2];
+          out[1] = B[0] * bt[0] + B[1] * bt[1] + B[2] * bt[2];
+          out[2] = B[0] * n[0] + B[1] * n[1] + B[2] * n[2];
+        }
       }
     }
     if (shared) {
@@ -710,18 +742,23 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   add(lm.irradiance, 3);
   add(lm.transport, lm.transportChannels * lm.order * lm.order);
   add(lm.sh, 3 * lm.shOrder * lm.shOrder);
-  dilate(lm, o.dilation, planes, widths);
+  // Tangent frames may differ across a UV seam: the tangent-space bent normal is dilated, not stitched.
+  std::vector<std::vector<float>*> dilated = planes;
+  std::vector<int> dilatedWidths = widths;
+  if (!lm.bentTangent.empty()) dilated.push_back(&lm.bentTangent), dilatedWidths.push_back(3);
+  dilate(lm, o.dilation, dilated, dilatedWidths);
   if (o.stitchSeams) {
     const SeamStats seams = stitchSeams(mesh, uv, usable, lm, planes, widths);
     lm.seamEdges = seams.edges, lm.seamJumpBefore = seams.jumpBefore, lm.seamJumpAfter = seams.jumpAfter;
   }
   // Dilated and stitched bent normals are means of unit vectors: renormalised.
-  for (size_t i = 0; !lm.bent.empty() && i < lm.texels(); ++i) {
-    float* b = &lm.bent[3 * i];
-    const double len = std::sqrt(double(b[0]) * b[0] + double(b[1]) * b[1] + double(b[2]) * b[2]);
-    if (len > 0)
-      for (int c = 0; c < 3; ++c) b[c] = float(b[c] / len);
-  }
+  for (std::vector<float>* plane : {&lm.bent, &lm.bentTangent})
+    for (size_t i = 0; i < plane->size() / 3; ++i) {
+      float* b = &(*plane)[3 * i];
+      const double len = std::sqrt(double(b[0]) * b[0] + double(b[1]) * b[1] + double(b[2]) * b[2]);
+      if (len > 0)
+        for (int c = 0; c < 3; ++c) b[c] = float(b[c] / len);
+    }
   lm.repairSeconds = secondsSince(tRepair);
   lm.totalSeconds = secondsSince(tStart);
   return lm;

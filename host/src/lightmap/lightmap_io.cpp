@@ -22,6 +22,7 @@ const char* productName(LightmapProduct p) {
     case kLightmapIrradiance: return "irradiance";
     case kLightmapTransport: return "transport";
     case kLightmapSh: return "sh";
+    case kLightmapBentTangent: return "bent_tangent";
   }
   return "?";
 }
@@ -35,6 +36,7 @@ const std::vector<float>& planeOf(const LightmapResult& lm, LightmapProduct p, i
     case kLightmapIrradiance: v = &lm.irradiance, *width = 3; break;
     case kLightmapTransport: v = &lm.transport, *width = lm.transportChannels * lm.order * lm.order; break;
     case kLightmapSh: v = &lm.sh, *width = 3 * lm.shOrder * lm.shOrder; break;
+    case kLightmapBentTangent: v = &lm.bentTangent, *width = 3; break;
   }
   if (!v || v->empty()) throw UsageError("--products", std::string("the lightmap has no ") + productName(p) + " (not asked for)");
   return *v;
@@ -180,6 +182,8 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
       {"texel", "texel (x, y) covers u in [x, x+1]/W, v in [y, y+1]/H; row 0 at v = 0 (glTF: the image's top)"},
       {"ao", "cosine-weighted unoccluded fraction of the hemisphere, 1 on an open plane"},
       {"bent", "unit cosine-weighted mean unoccluded direction, object space"},
+      {"bent_tangent", "bent in tangent space (B.t, B.b, B.n): t the glTF TANGENT made orthogonal to n, "
+                       "b = w n x t (meshes with tangents)"},
       {"irradiance", "E/pi, linear RGB: the exit radiance of a white Lambertian surface"},
       {"transport", "per-texel PRT transport, real SH with the Condon-Shortley phase, i = l(l+1)+m; "
                     "shade rho * sum_i l_i T_i"},
