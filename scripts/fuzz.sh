@@ -38,7 +38,7 @@ cmake --build "$build" -j"$(nproc)" --target "${targets[@]/#/fuzz_}"
 dict_of() {
   case "$1" in
     env_image|env_faces|lut_exr) echo tests/fuzz/image.dict ;;
-    gltf) echo tests/fuzz/gltf.dict ;;
+    gltf|lightmap) echo tests/fuzz/gltf.dict ;;
     obj) echo tests/fuzz/obj.dict ;;
     jobfile|sh_json) echo tests/fuzz/json.dict ;;
     npy|glossy) echo tests/fuzz/npy.dict ;;

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <tuple>
 
 #include "jobs.h"
 #include "manifest.h"
@@ -299,6 +300,44 @@ void glossy() {
   put("glossy", "cpca_int8", Bytes(1, '\2') + cpcaNpzBytes(cpcaCompress(data.data(), 8, dim, o), 3, 2, 1));
 }
 
+// The lightmap target (fuzz_lightmap.cpp): OBJ vt and glTF TEXCOORD_0/1 and TANGENT.
+void lightmaps() {
+  const Bytes floor = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\n"
+                      "vt 0 0\nvt 0.45 0\nvt 0.45 0.45\nvt 0 0.45\nvt 0.55 0.55\nvt 1 0.55\nvt 1 1\nvn 0 1 0\nvn 0 -1 0\n"
+                      "f 1/1/1 4/4/1 3/3/1\nf 1/1/1 3/3/1 2/2/1\nf 5/5/2 6/6/2 7/7/2\n";
+  put("lightmap", "obj_two_charts", "\x05" + floor);
+  put("lightmap", "obj_overlap", "\x01v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nvt 0 0\nvt 1 0\nvt 1 1\n"
+                                 "f 1/1 2/2 3/3\nf 4/1 5/2 6/3\n");
+  put("lightmap", "obj_nan_uv", "\x01v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt nan 0\nvt 1 1\nf 1/1 2/2 3/3\n");
+  put("lightmap", "obj_no_uv", "\x01v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");
+  // One triangle: POSITION, TEXCOORD_0, TEXCOORD_1, TANGENT (w as given), one buffer.
+  auto gltf = [](float w) {
+    const float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, uv0[] = {0, 0, 1, 0, 0, 1}, uv1[] = {0.1f, 0.1f, 0.9f, 0.1f, 0.1f, 0.9f};
+    const float tan[] = {1, 0, 0, w, 1, 0, 0, w, 1, 0, 0, w};
+    Bytes bin;
+    for (const auto& [p, n] : {std::pair{pos, sizeof pos}, {uv0, sizeof uv0}, {uv1, sizeof uv1}, {tan, sizeof tan}})
+      bin.append(reinterpret_cast<const char*>(p), n);
+    return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2, "TANGENT": 3}}]}],
+  "buffers": [{"uri": "b.bin", "byteLength": 132}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+                  {"buffer": 0, "byteOffset": 60, "byteLength": 24}, {"buffer": 0, "byteOffset": 84, "byteLength": 48}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"},
+                {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"},
+                {"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"}]})" + std::string() + "\n" + bin;
+  };
+  for (const auto& [name, w, flags] : {std::tuple{"gltf_uv1_tangent", 1.0f, '\x18'}, {"gltf_bad_tangent_w", 0.5f, '\x10'}}) {
+    const Bytes both = gltf(w);
+    const size_t split = both.find("\n");
+    put("lightmap", name, Bytes(1, flags) + parts({both.substr(0, split), both.substr(split + 1)}));
+  }
+  for (const auto& e : fs::directory_iterator(fs::path(gTests) / "corpus")) {
+    const std::string file = e.path().filename().string(), ext = e.path().extension().string();
+    if (ext == ".obj") put("lightmap", "corpus_" + file, "\x01" + slurp(e.path().string()));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -313,6 +352,7 @@ int main(int argc, char** argv) {
     shAndLut();
     jobFiles();
     glossy();
+    lightmaps();
   } catch (const std::exception& e) {
     std::cerr << "prtbake_make_seeds: " << e.what() << "\n";
     return 1;

@@ -96,7 +96,7 @@ double boundRatio(const std::string& target, const std::string& format) {
       {"env_image/OpenEXR", 786432}, {"env_image/other", 0},   {"lut_exr/OpenEXR", 786432},
       {"lut_exr/other", 0},          {"env_faces", 786432},    {"gltf", 64},
       {"obj", 64},                   {"jobfile", 64},          {"sh_json", 64},
-      {"npy", 64},                   {"glossy", 64}};
+      {"npy", 64},                   {"glossy", 64},           {"lightmap", 64}};
   const auto it = kRatio.find(format.empty() ? target : target + "/" + format);
   return it == kRatio.end() ? -1 : it->second;
 }

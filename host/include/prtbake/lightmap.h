@@ -128,6 +128,19 @@ struct LightmapResult {
 // a missing UV set or non-finite UVs.
 int lightmapSize(const Mesh& mesh, const LightmapOptions& options);
 
+// The bake's first stage, without a device: the UV checks, the charts, the conservative
+// rasterisation and each touched texel's sample. Throws as computeLightmap does for the mesh
+// and UVs (and UsageError for the size).
+struct LightmapSamples {
+  LightmapResult lm;                 // size, UV set, state (Baked where a sample lies, else Empty), counts
+  SurfacePoints points;              // one sample per baked texel: position, shading and face normals
+  std::vector<uint32_t> texelOf;     // the texel (y·W + x) of each sample
+  std::vector<float> reach;          // half the texel's width in world units at each sample
+  std::vector<float> tangentFrames;  // 6 per sample (t, b) where the mesh has tangents, else empty
+  std::vector<char> usable;          // per triangle: positive area in UV and in space
+};
+LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& options);
+
 // Bakes the products asked for under the environment's radiance coefficients (irradiance).
 // Throws UsageError for bad options; InputError naming the mesh for a missing UV set, UVs
 // that are not finite, no triangle of positive UV area, or overlapping charts (a texel

@@ -547,31 +547,22 @@ int lightmapSize(const Mesh& mesh, const LightmapOptions& o) {
   return std::max(4, int(std::ceil(side / 4)) * 4);
 }
 
-LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& env, const LightmapOptions& o) {
+LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& o) {
   const auto tStart = Clock::now();
   validateMesh(mesh, subjectOf(mesh));
-  if (o.products == 0 || (o.products & ~kLightmapAllProducts)) throw UsageError("--products", "no product asked for");
-  if (o.products & kLightmapSh) {
-    if (o.shOrder != 2 && o.shOrder != 3) throw UsageError("--sh-order", "must be 2 (L1) or 3 (L2)");
-    if (o.order > kMaxGlossyOrder)
-      throw UsageError("--order", "the sh product takes environment orders up to " + std::to_string(kMaxGlossyOrder));
-  }
-  if (o.dilation < 0 || o.dilation > 4096) throw UsageError("--dilation", "must lie in [0, 4096]");
-  if (o.bounces < 0 || o.bounces > 16) throw UsageError("--bounces", "must lie in [0, 16]");
-  if (o.maxDistance != 0 && !(o.maxDistance > 0 && std::isfinite(o.maxDistance)))
-    throw UsageError("--max-distance", "must be a finite number > 0");
-  LightmapResult lm;
+  LightmapSamples out;
+  LightmapResult& lm = out.lm;
   lm.products = o.products;
   lm.uvSet = resolveUvSet(mesh, o.uvSet);
   lm.width = lm.height = lightmapSize(mesh, o);
   lm.samples = o.samples;
-  lm.device = rt.deviceLabel();
   const int W = lm.width, H = lm.height;
   const std::vector<float>& uv = mesh.uvs[size_t(lm.uvSet)];
 
   // Triangles that can hold a sample: positive area in UV and in space.
   const size_t nt = mesh.triangleCount();
-  std::vector<char> usable(nt, 0);
+  std::vector<char>& usable = out.usable;
+  usable.assign(nt, 0);
   std::vector<double> worldPerTexel(nt, 0.0);
   for (size_t t = 0; t < nt; ++t) {
     const uint32_t i = mesh.indices[3 * t], j = mesh.indices[3 * t + 1], k = mesh.indices[3 * t + 2];
@@ -592,10 +583,10 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   for (size_t t = 0; t < nt; ++t) lm.charts += usable[t] && charts.find(uint32_t(t)) == t;
 
   // The samples (and with tangents, each one's tangent frame t, b: 6 floats).
-  SurfacePoints pts;
-  std::vector<float> frames;
-  std::vector<uint32_t> texelOf;
-  std::vector<float> reach;
+  SurfacePoints& pts = out.points;
+  std::vector<float>& frames = out.tangentFrames;
+  std::vector<uint32_t>& texelOf = out.texelOf;
+  std::vector<float>& reach = out.reach;
   for (size_t i = 0; i < hits.size(); ++i) {
     const TexelHit& h = hits[i];
     if (h.tri < 0) continue;
@@ -620,10 +611,33 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   lm.state.assign(lm.texels(), uint8_t(TexelState::Empty));
   for (uint32_t i : texelOf) lm.state[i] = uint8_t(TexelState::Baked);
   lm.rasterSeconds = secondsSince(tStart);
+  return out;
+}
+
+LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& env, const LightmapOptions& o) {
+  const auto tStart = Clock::now();
+  if (o.products == 0 || (o.products & ~kLightmapAllProducts)) throw UsageError("--products", "no product asked for");
+  if (o.products & kLightmapSh) {
+    if (o.shOrder != 2 && o.shOrder != 3) throw UsageError("--sh-order", "must be 2 (L1) or 3 (L2)");
+    if (o.order > kMaxGlossyOrder)
+      throw UsageError("--order", "the sh product takes environment orders up to " + std::to_string(kMaxGlossyOrder));
+  }
+  if (o.dilation < 0 || o.dilation > 4096) throw UsageError("--dilation", "must lie in [0, 4096]");
+  if (o.bounces < 0 || o.bounces > 16) throw UsageError("--bounces", "must lie in [0, 16]");
+  if (o.maxDistance != 0 && !(o.maxDistance > 0 && std::isfinite(o.maxDistance)))
+    throw UsageError("--max-distance", "must be a finite number > 0");
+  LightmapSamples samples = lightmapSamples(mesh, o);
+  LightmapResult& lm = samples.lm;
+  lm.device = rt.deviceLabel();
+  SurfacePoints& pts = samples.points;
+  const std::vector<uint32_t>& texelOf = samples.texelOf;
+  const std::vector<float>& frames = samples.tangentFrames;
+  const std::vector<char>& usable = samples.usable;
+  const std::vector<float>& uv = mesh.uvs[size_t(lm.uvSet)];
 
   if (o.unocclude) {
     const auto t0 = Clock::now();
-    const std::vector<uint8_t> s = unocclude(rt, mesh, pts, reach);
+    const std::vector<uint8_t> s = unocclude(rt, mesh, pts, samples.reach);
     for (size_t i = 0; i < s.size(); ++i)
       if (s[i]) lm.state[texelOf[i]] = uint8_t(s[i] == 1 ? TexelState::Moved : TexelState::Buried);
     lm.unoccludeSeconds = secondsSince(t0);
