@@ -144,10 +144,12 @@ void rasterise(const Mesh& mesh, const std::vector<float>& uv, int W, int H, con
       q[k][0] = double(uv[2 * v]) * W, q[k][1] = double(uv[2 * v + 1]) * H;
     }
     const double area = cross2(q[1][0] - q[0][0], q[1][1] - q[0][1], q[2][0] - q[0][0], q[2][1] - q[0][1]);
-    const int x0 = std::max(0, int(std::floor(std::min({q[0][0], q[1][0], q[2][0]})))),
-              x1 = std::min(W - 1, int(std::floor(std::max({q[0][0], q[1][0], q[2][0]})))),
-              y0 = std::max(0, int(std::floor(std::min({q[0][1], q[1][1], q[2][1]})))),
-              y1 = std::min(H - 1, int(std::floor(std::max({q[0][1], q[1][1], q[2][1]}))));
+    // The texel range it covers, clamped to the map in double first (UVs may lie far outside it).
+    auto cell = [](double c, int n) { return int(std::floor(std::clamp(c, -1.0, double(n)))); };
+    const int x0 = std::max(0, cell(std::min({q[0][0], q[1][0], q[2][0]}), W)),
+              x1 = std::min(W - 1, cell(std::max({q[0][0], q[1][0], q[2][0]}), W)),
+              y0 = std::max(0, cell(std::min({q[0][1], q[1][1], q[2][1]}), H)),
+              y1 = std::min(H - 1, cell(std::max({q[0][1], q[1][1], q[2][1]}), H));
     const uint32_t chart = charts.find(uint32_t(t));
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
@@ -356,7 +358,8 @@ SeamStats stitchSeams(const Mesh& mesh, const std::vector<float>& uv, const std:
   };
   std::vector<std::array<Tap, 8>> rows;
   auto taps = [&](double u, double v, double sign, Tap* out) {
-    const double s = u * W - 0.5, t = v * H - 0.5;
+    // Clamped before the integer conversion: a lookup outside the map reads its edge.
+    const double s = std::clamp(u * W - 0.5, -1.0, double(W)), t = std::clamp(v * H - 0.5, -1.0, double(H));
     const int x0 = int(std::floor(s)), y0 = int(std::floor(t));
     const double fx = s - x0, fy = t - y0;
     int k = 0;
@@ -374,7 +377,9 @@ SeamStats stitchSeams(const Mesh& mesh, const std::vector<float>& uv, const std:
     ++st.edges;
     const double lenA = std::hypot((a.uv1[0] - a.uv0[0]) * W, (a.uv1[1] - a.uv0[1]) * H);
     const double lenB = std::hypot((b.uv1[0] - b.uv0[0]) * W, (b.uv1[1] - b.uv0[1]) * H);
-    const int k = std::max(2, int(std::ceil(2 * std::max(lenA, lenB))));
+    // Two points per texel of the longer side, at most as many as the map's perimeter holds
+    // (an edge that long lies mostly outside the map).
+    const int k = std::max(2, int(std::ceil(2 * std::min(std::max(lenA, lenB), 2.0 * (W + H)))));
     for (int q = 0; q < k; ++q) {
       const double t = (q + 0.5) / k;
       std::array<Tap, 8> row;
