@@ -223,17 +223,26 @@ cl::Program Runtime::program(const std::string& file, const std::string& options
   // PoCL keeps compiled kernels in POCL_CACHE_DIR; prtbake keeps no binaries of its own:
   // fetching a program's binary makes PoCL compile every kernel of the program (0.2-0.6 s
   // at a cold start, measured) for about 30 ms saved per program on later runs.
-  cl::Program program(context_, source);
-  try {
-    program.build({device_}, fullOptions.c_str());
-  } catch (const cl::Error& e) {
+  // PoCL 3.1 writes a program's cache entry by removing it first and fails the build when a
+  // process sharing the cache removed it in between (5 failed builds in about 1,400 processes
+  // started eight at a time on an empty cache). A failure whose log names no compiler error is
+  // tried again, twice at most: none failed in 2,000 more, 10 of them saved by a retry.
+  cl::Program program;
+  for (int attempt = 0;; ++attempt) {
+    program = cl::Program(context_, source);
     std::string log;
     try {
-      log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device_);
-    } catch (...) {
+      program.build({device_}, fullOptions.c_str());
+      break;
+    } catch (const cl::Error&) {
+      try {
+        log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device_);
+      } catch (...) {
+      }
     }
-    throw DeviceError(file, "kernel build failed on " + deviceLabel() + " with options '" +
-                                fullOptions + "':\n" + trim(log));
+    if (attempt == 2 || log.find("error") != std::string::npos)
+      throw DeviceError(file, "kernel build failed on " + deviceLabel() + " with options '" +
+                                  fullOptions + "':\n" + trim(log));
   }
   buildSeconds_ += secondsSince(t0);
   programs_.emplace(key, program);
