@@ -101,10 +101,11 @@ def enter_private_namespace():
 
 
 # A traced call with a file descriptor, as strace -f -y writes it:
-# "PID fsync(3</path>) = -1 EIO (Input/output error) (INJECTED)". A call that another thread
+# "PID fsync(3</path>) = -1 EIO (Input/output error) (INJECTED)", the PID left-aligned in five
+# columns (a PID below 10000 is followed by two spaces or more). A call that another thread
 # interrupted is counted once, by its first half ("... <unfinished ...>"; the second half
 # starts "PID <... fsync resumed>" and does not match).
-TRACE_LINE = re.compile(r"^(\d+) (\w+)\((\d+)<([^>]*)>")
+TRACE_LINE = re.compile(r"^(\d+) +(\w+)\((\d+)<([^>]*)>")
 
 
 def traced_calls(trace_path):
@@ -112,7 +113,7 @@ def traced_calls(trace_path):
     calls, main = [], None
     with open(trace_path, errors="replace") as f:
         for line in f:
-            pid = line.split(" ", 1)[0]
+            pid = line.split(None, 1)[0] if line.strip() else ""
             if main is None and " execve(" in line:
                 main = pid
             m = TRACE_LINE.match(line)
