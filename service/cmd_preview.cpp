@@ -11,6 +11,7 @@
 #include "prtbake/env.h"
 #include "prtbake/error.h"
 #include "prtbake/exr.h"
+#include "prtbake/lightmap.h"
 #include "prtbake/mesh.h"
 #include "prtbake/prefilter.h"
 #include "prtbake/preview.h"
@@ -211,6 +212,28 @@ int previewPrefilter(const CommandLine& cl, const std::string& input, const std:
   return 0;
 }
 
+int previewLightmap(const CommandLine& cl, const std::string& input, const std::string& output) {
+  const std::string dir = cl.get("lightmap");
+  if (dir.empty()) throw UsageError("preview", "lightmap previews need --lightmap DIR (the directory prtbake lightmap wrote)");
+  MeshPreviewOptions o;
+  parseImageSize(cl.get("size"), o);
+  parseView(cl.get("view"), o);
+  ToneMap tm;
+  tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
+  const Mesh mesh = loadMesh(input);
+  const LightmapResult lm = readLightmap(dir);
+  Runtime& rt = jobs::processRuntime(cl.device());
+  const LinearImage img = renderLightmapPreview(rt, mesh, lm, o);
+  writePreviewPng(output, img, tm,
+                  {{"Description", "prtbake lightmap preview: each product on the mesh (bilinear at UV set " +
+                                       std::to_string(lm.uvSet) + ") and as the atlas (" + lightmapProductsName(lm.products) + ")"},
+                   {"Source", input},
+                   {"Lightmap", dir}});
+  status(cl, "wrote " + output + " (" + lightmapProductsName(lm.products) + ", " + std::to_string(lm.width) + "x" +
+                 std::to_string(lm.height) + " texels)");
+  return 0;
+}
+
 int runPreview(const CommandLine& cl) {
   const std::string kind = cl.positional.at(0), input = cl.positional.at(1), output = cl.get("output");
   if (output.empty()) throw UsageError("preview", "missing -o OUT.png");
@@ -218,11 +241,12 @@ int runPreview(const CommandLine& cl) {
   if (kind == "lut") return previewLut(cl, input, output);
   if (kind == "mesh") return previewMesh(cl, input, output);
   if (kind == "prefilter") return previewPrefilter(cl, input, output);
-  throw UsageError("preview", "unknown kind '" + kind + "' (expected env, lut, mesh or prefilter)");
+  if (kind == "lightmap") return previewLightmap(cl, input, output);
+  throw UsageError("preview", "unknown kind '" + kind + "' (expected env, lut, mesh, prefilter or lightmap)");
 }
 
 PRTBAKE_COMMAND(Command{
-    "preview", "render PNG previews of products (env, lut, mesh, prefilter)",
+    "preview", "render PNG previews of products (env, lut, mesh, prefilter, lightmap)",
     "prtbake preview env (ENVMAP | SH.json) -o OUT.png [--order N] [--window W] [--size W] [--exposure EV]\n"
     "       prtbake preview lut LUT.exr -o OUT.png [--size S]\n"
     "       prtbake preview mesh MESH (--transport T.npy | a glTF copy with _PRT_* attributes) --env SH.json\n"
@@ -232,13 +256,16 @@ PRTBAKE_COMMAND(Command{
     "               [--lobe cosine|phong:S|ggx:R] [--unnormalised] [--size WxH] [--view V] [--rotate-light DEG]\n"
     "       prtbake preview prefilter ENVMAP -o OUT.png [--size W] [--base N] [--lobe L] [--schedule S | --roughness R,...]\n"
     "               [--levels N] [--tolerance E]\n"
+    "       prtbake preview lightmap MESH --lightmap DIR -o OUT.png [--size WxH] [--view V] [--exposure EV]\n"
     "env: lat-long panels: the environment, its SH radiance reconstruction, and irradiance/pi.\n"
     "lut: each channel over N.V (x) and roughness (y, upward) with labelled axes.\n"
     "mesh: the mesh shaded with its baked transport under the environment's radiance SH\n"
     "      (L = albedo * sum_i l_i T_i), the environment as background; --rotate-light turns\n"
     "      the lighting about +Y (right-handed, degrees) with the exact SH rotation.\n"
     "prefilter: every level of the chain prtbake prefilter makes (base --base, default 128) as a lat-long\n"
-    "      panel, and spheres r = 0 ... 1 shaded with the split sum (this chain times prtbake's GGX LUT).",
+    "      panel, and spheres r = 0 ... 1 shaded with the split sum (this chain times prtbake's GGX LUT).\n"
+    "lightmap: per product in DIR (the OpenEXR outputs of prtbake lightmap), a row: the mesh with the\n"
+    "      product sampled bilinearly at each pixel's lightmap UV, beside the atlas.",
     {{"output", true, "output PNG (also -o)"},
      {"order", true, "SH order of the reconstruction (env map input; default 3)"},
      {"window", true, "none|hann|lanczos|auto (env map input)"},
@@ -262,7 +289,8 @@ PRTBAKE_COMMAND(Command{
      {"tolerance", true, "prefilter: error target (default 0.01)"},
      {"method", true, "prefilter: cut (default) or sampled"},
      {"samples", true, "prefilter: samples per texel with --method sampled"},
-     {"no-estimate", false, "prefilter: skip the error estimate"}},
+     {"no-estimate", false, "prefilter: skip the error estimate"},
+     {"lightmap", true, "lightmap: the directory prtbake lightmap wrote (its lightmap.json and .exr products)"}},
     2, 2, runPreview});
 
 }  // namespace

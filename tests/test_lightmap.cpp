@@ -13,6 +13,7 @@
 #include "prtbake/exr.h"
 #include "prtbake/glossy.h"
 #include "prtbake/lightmap.h"
+#include "prtbake/preview.h"
 #include "prtbake/sh.h"
 #include "prtbake/transport.h"
 #include "engine_test_helpers.h"
@@ -843,6 +844,108 @@ try {
 )";
 
 }  // namespace
+
+TEST_CASE("Lightmap: the preview shows each product on the mesh where its UV reads it, beside the atlas", "[lightmap][preview]") {
+  // The floor z = 0 over [−1, 1]², facing the front view's camera (+z; screen up +y, right +x),
+  // its UVs u = (x + 1)/2, v = (1 − y)/2. Synthetic 32² maps whose values are linear in the UV,
+  // which bilinear filtering reproduces exactly: ao = v at texel centres, so the view reads v
+  // (larger down the image); bent's x = 2u − 1, shown R = sRGB⁻¹(u) (larger to the right);
+  // sh (L1) with D_2 = 1 alone, shaded along n = +z: Y_2(+z) = √(3/4π) everywhere.
+  Mesh m;
+  addFloor(m, 1, {0, 0, 1, 1});
+  const int W = 32;
+  LightmapResult lm;
+  lm.width = lm.height = W;
+  lm.uvSet = 0;
+  lm.products = kLightmapAo | kLightmapBent | kLightmapSh;
+  lm.shOrder = 2;
+  lm.state.assign(size_t(W) * W, uint8_t(TexelState::Baked));
+  lm.state[0] = uint8_t(TexelState::Empty);  // the atlas's top-left texel: dark blue
+  lm.ao.resize(size_t(W) * W);
+  lm.bent.assign(size_t(W) * W * 3, 0.0f);
+  lm.sh.assign(size_t(W) * W * 12, 0.0f);
+  for (int y = 0; y < W; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t i = size_t(y) * W + x;
+      lm.ao[i] = float((y + 0.5) / W);
+      lm.bent[3 * i] = float(2 * (x + 0.5) / W - 1), lm.bent[3 * i + 2] = 1.0f;
+      lm.sh[12 * i + 3 * 2 + 1] = 1.0f;  // D_2, green
+    }
+  MeshPreviewOptions view;
+  view.width = 160, view.height = 120;
+  const LinearImage img = renderLightmapPreview(test::runtime(), m, lm, view);
+  REQUIRE(img.width == 160 + 120);
+  REQUIRE(img.height == 3 * 120);
+  auto at = [&](int x, int y, int c) { return double(img.rgb[3 * (size_t(y) * img.width + x) + c]); };
+  auto srgbToLinear = [](double s) { return s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4); };
+  const double background = double(0.18f);  // the mesh panel's background
+  // The centre pixel looks at the floor's centre (the camera aims at the bounds' centre): v = 0.5
+  // within half a pixel's footprint (2 units over < 0.9 × 120 pixels: 0.01 in v).
+  CHECK(std::abs(at(80, 60, 0) - 0.5) < 0.01);
+  CHECK(at(2, 60, 0) == Approx(background));  // beside the floor
+  // Down the centre column, over the floor: non-decreasing, from the top edge's v to the bottom's.
+  std::vector<double> column;
+  for (int y = 0; y < 120; ++y)
+    if (at(80, y, 0) != background) column.push_back(at(80, y, 0));
+  REQUIRE(column.size() > 60);
+  CHECK(std::is_sorted(column.begin(), column.end()));
+  CHECK(column.front() < 0.1);
+  CHECK(column.back() > 0.9);
+  // bent: along the centre row, R = sRGB⁻¹(u) rising to the right, and B = sRGB⁻¹(1).
+  std::vector<double> row;
+  for (int x = 0; x < 160; ++x)
+    if (at(x, 120 + 60, 2) != background) row.push_back(at(x, 120 + 60, 0));
+  REQUIRE(row.size() > 60);
+  CHECK(std::is_sorted(row.begin(), row.end()));
+  CHECK(row.front() < srgbToLinear(0.1));
+  CHECK(row.back() > srgbToLinear(0.9));
+  CHECK(at(80, 120 + 60, 2) == Approx(1.0).margin(1e-6));
+  // sh: the L1 band's z term along the floor's normal, at every floor pixel below the label (float sums: 1e-5).
+  const double y2 = std::sqrt(3 / (4 * kPi));
+  int floorPixels = 0;
+  for (int y = 240; y < 360; ++y)
+    for (int x = 0; x < 160; ++x)
+      if (at(x, y, 0) != background || at(x, y, 1) != background) {
+        ++floorPixels;
+        if (std::abs(at(x, y, 1) - y2) > 1e-5 && y > 240 + 30) FAIL("sh pixel (" << x << ", " << y << ") = " << at(x, y, 1));
+      }
+  CHECK(floorPixels > 5000);
+  // The atlas: nearest texel, rows top-down as the file's; the empty texel dark blue.
+  CHECK(at(160 + 60, 60 + 2, 0) == Approx((W / 2 + 0.5) / W));
+  CHECK(at(160 + 60, 118, 0) == Approx((W - 1 + 0.5) / W));
+  CHECK(at(160 + 1, 24, 0) == Approx((24 * W / 120 + 0.5) / W));
+  CHECK(at(160 + 1, 1, 2) == Approx(0.08));
+  // A mesh without the lightmap's UV set: the mesh is named.
+  lm.uvSet = 1;
+  CHECK_THROWS_WITH(renderLightmapPreview(test::runtime(), m, lm, view), Catch::Contains("has no UV set 1"));
+
+  // The command: a lightmap directory read back, and its errors.
+  const std::string dir = test::tempDir("lightmap-preview");
+  std::ofstream(dir + "/floor.obj") << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 1 0\n"
+                                       "f 1/1/1 4/4/1 3/3/1\nf 1/1/1 3/3/1 2/2/1\n";
+  std::ofstream(dir + "/novt.obj") << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nf 1 3 2\n";
+  const auto bake = test::runCli("lightmap '" + dir + "/floor.obj' -o '" + dir + "/lm' --size 16 --samples 16 --products ao,bent --quiet");
+  REQUIRE(bake.exitCode == 0);
+  const LightmapResult back = readLightmap(dir + "/lm");
+  CHECK(back.products == (kLightmapAo | kLightmapBent));
+  CHECK(back.width == 16);
+  CHECK(std::count(back.state.begin(), back.state.end(), uint8_t(TexelState::Baked)) == 256);
+  const auto r = test::runCli("preview lightmap '" + dir + "/floor.obj' --lightmap '" + dir + "/lm' -o '" + dir +
+                              "/p.png' --size 64x48 --view top");
+  INFO(r.output);
+  CHECK(r.exitCode == 0);
+  CHECK(test::fileExists(dir + "/p.png"));
+  const auto noDir = test::runCli("preview lightmap '" + dir + "/floor.obj' -o '" + dir + "/q.png'");
+  CHECK(noDir.exitCode == 2);
+  CHECK(noDir.output.find("--lightmap DIR") != std::string::npos);
+  const auto empty = test::runCli("preview lightmap '" + dir + "/floor.obj' --lightmap '" + dir + "' -o '" + dir + "/q.png'");
+  CHECK(empty.exitCode == 1);
+  CHECK(empty.output.find("lightmap.json") != std::string::npos);
+  const auto noUv = test::runCli("preview lightmap '" + dir + "/novt.obj' --lightmap '" + dir + "/lm' -o '" + dir + "/q.png'");
+  CHECK(noUv.exitCode == 1);
+  CHECK(noUv.output.find("novt.obj: has no UV set 0") != std::string::npos);
+  CHECK_FALSE(test::fileExists(dir + "/q.png"));
+}
 
 TEST_CASE("Lightmap: three.js and Babylon.js render the AO and the irradiance lightmap on uv1 as prtbake samples them",
           "[lightmap][engines][chromium]") {

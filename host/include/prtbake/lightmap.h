@@ -168,4 +168,12 @@ std::string lightmapGltfBytes(const std::string& path, const Mesh& mesh, const L
 std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOptions& options,
                                  const LightmapResult& lm);
 
+// Reads back what prtbake lightmap wrote to `dir`: the UV set from lightmap.json and every
+// product whose OpenEXR is there (ao, bent, bent_tangent, irradiance, sh, transport), all of one
+// size. The state comes from each texel's A: valid (1) is Baked; otherwise Dilated where any
+// product holds a non-zero value, else Empty. Counts, samples and timings are not read. Throws
+// InputError naming the file for a missing sidecar or no product, sizes that differ, or channels
+// that are not the product's.
+LightmapResult readLightmap(const std::string& dir);
+
 }  // namespace prtbake

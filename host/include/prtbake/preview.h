@@ -121,6 +121,21 @@ MeshPreviewResult renderMeshPreview(Runtime& rt, const Mesh& mesh, const Transpo
 LinearImage renderProbeGridPreview(Runtime& rt, const Mesh& scene, const ProbeGridResult& grid,
                                    const MeshPreviewOptions& view, int maxSpheres = 4096);
 
+// --- lightmap preview ---
+//
+// One row per product of the lightmap (ao, bent, bent_tangent, irradiance, sh, transport): on the
+// left the mesh seen by `view`'s camera (size, orbit; the lighting options do not apply), each
+// pixel showing the product read from the lightmap as an engine's linear sampler reads it
+// (bilinear at the UV of the lightmap's set at the camera ray's hit, clamped to the edge: black
+// shows a texel no repair reached); on the right the atlas, a square as tall as the view
+// (nearest texel, empty texels dark blue). Shown: ao grey; bent as a normal map's colours
+// (0.5 + b/2 after the sRGB curve); irradiance E/π; sh E/π = Σ_j D_j Y_j(n) along the
+// interpolated shading normal (the atlas: the L0 term); transport under a white sky (√(4π) T_0).
+// Throws InputError naming the mesh when it lacks the lightmap's UV set.
+struct LightmapResult;
+LinearImage renderLightmapPreview(Runtime& rt, const Mesh& mesh, const LightmapResult& lightmap,
+                                  const MeshPreviewOptions& view);
+
 // --- prefiltered chain preview ---
 //
 // Every level as a lat-long panel (OpenEXR LatLongMap axes, +Y up; panelWidth × panelWidth/2)

@@ -1,6 +1,7 @@
 // Lightmap outputs: OpenEXR, KTX 2.0, the AO's PNG and the sidecar (see prtbake/lightmap.h).
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "io/gltf.h"
@@ -209,6 +210,87 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
                   {"total_seconds", lm.totalSeconds}};
   j["device"] = lm.device;
   return j.dump(2) + "\n";
+}
+
+LightmapResult readLightmap(const std::string& dir) {
+  const std::string sidecar = dir + "/lightmap.json";
+  LightmapResult lm;
+  try {
+    const auto j = nlohmann::json::parse(readFile(sidecar));
+    const auto& uv = j.at("parameters").at("uv_set");
+    if (!uv.is_number_integer() || uv.get<long long>() < 0 || uv.get<long long>() > 255)
+      throw InputError(sidecar, "parameters.uv_set must be an integer in [0, 255]");
+    lm.uvSet = uv.get<int>();
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(sidecar, std::string("not a lightmap sidecar: ") + e.what());
+  }
+  std::vector<float> alpha;
+  for (LightmapProduct p : {kLightmapAo, kLightmapBent, kLightmapBentTangent, kLightmapIrradiance, kLightmapSh, kLightmapTransport}) {
+    const std::string path = dir + "/" + productName(p) + ".exr";
+    if (!std::filesystem::exists(path)) continue;
+    const ExrImage img = readExr(path);
+    if (lm.products == 0) {
+      lm.width = img.width, lm.height = img.height;
+    } else if (img.width != lm.width || img.height != lm.height) {
+      throw InputError(path, "is " + std::to_string(img.width) + "x" + std::to_string(img.height) + " but the products before it are " +
+                                 std::to_string(lm.width) + "x" + std::to_string(lm.height));
+    }
+    // The channel names the writer gives this product (lightmapExrBytes), in texel-major order.
+    std::vector<std::string> names;
+    auto has = [&](const std::string& n) { return img.channel(n) != nullptr; };
+    if (p == kLightmapAo) {
+      names = {"Y"};
+    } else if (p == kLightmapSh) {
+      for (int k = 0; has("SH" + std::to_string(k) + ".R"); ++k)
+        for (char c : {'R', 'G', 'B'}) names.push_back("SH" + std::to_string(k) + "." + c);
+      const int m = int(std::lround(std::sqrt(double(names.size() / 3))));
+      if (m < 2 || m > 3 || size_t(m * m * 3) != names.size()) throw InputError(path, "holds no L1 or L2 SH layers (SH0.R ...)");
+      lm.shOrder = m;
+    } else if (p == kLightmapTransport) {
+      lm.transportChannels = has("R.T0") ? 3 : 1;
+      int count = 0;
+      while (has(std::string(lm.transportChannels == 3 ? "R." : "") + "T" + std::to_string(count))) ++count;
+      lm.order = int(std::lround(std::sqrt(double(count))));
+      if (count == 0 || lm.order * lm.order != count) throw InputError(path, "holds no transport channels T0 ... (a square count)");
+      for (int c = 0; c < lm.transportChannels; ++c)
+        for (int k = 0; k < count; ++k)
+          names.push_back((lm.transportChannels == 3 ? std::string(1, "RGB"[c]) + "." : std::string()) + "T" + std::to_string(k));
+    } else {
+      names = {"R", "G", "B"};
+    }
+    names.push_back("A");
+    std::vector<const std::vector<float>*> planes;
+    for (const auto& n : names) {
+      planes.push_back(img.channel(n));
+      if (!planes.back()) throw InputError(path, "has no channel '" + n + "' (a " + productName(p) + " lightmap has " +
+                                                     std::to_string(names.size()) + " channels)");
+    }
+    const size_t n = lm.texels(), width = names.size() - 1;
+    std::vector<float> plane(n * width);
+    for (size_t i = 0; i < n; ++i)
+      for (size_t c = 0; c < width; ++c) plane[i * width + c] = (*planes[c])[i];
+    if (alpha.empty()) alpha = *planes.back();
+    lm.products |= p;
+    switch (p) {
+      case kLightmapAo: lm.ao = std::move(plane); break;
+      case kLightmapBent: lm.bent = std::move(plane); break;
+      case kLightmapBentTangent: lm.bentTangent = std::move(plane); break;
+      case kLightmapIrradiance: lm.irradiance = std::move(plane); break;
+      case kLightmapSh: lm.sh = std::move(plane); break;
+      case kLightmapTransport: lm.transport = std::move(plane); break;
+    }
+  }
+  if (lm.products == 0) throw InputError(dir, "holds no lightmap product (ao.exr, bent.exr, ...: written with --format exr or both)");
+  lm.state.assign(lm.texels(), uint8_t(TexelState::Empty));
+  for (size_t i = 0; i < lm.texels(); ++i) {
+    bool any = false;
+    for (const auto* v : {&lm.ao, &lm.bent, &lm.bentTangent, &lm.irradiance, &lm.sh, &lm.transport}) {
+      const size_t w = v->size() / lm.texels();
+      for (size_t c = 0; c < w && !any; ++c) any = (*v)[i * w + c] != 0.0f;
+    }
+    lm.state[i] = uint8_t(alpha[i] > 0.5f ? TexelState::Baked : any ? TexelState::Dilated : TexelState::Empty);
+  }
+  return lm;
 }
 
 }  // namespace prtbake
