@@ -778,6 +778,74 @@ py::array previewMesh(const py::object& meshObj, const py::object& transport, co
   return imageArray(std::move(img));
 }
 
+// A lightmap to preview: the directory prtbake lightmap wrote (readLightmap), or a LightmapResult
+// (its arrays copied once into the library's layout).
+LightmapResult lightmapArg(const py::object& v) {
+  if (isPath(v)) {
+    const std::string dir = pathOf(v);
+    py::gil_scoped_release nogil;
+    return readLightmap(dir);
+  }
+  if (!py::hasattr(v, "state") || !py::hasattr(v, "uv_set"))
+    throw UsageError("lightmap", "must be a LightmapResult or the directory prtbake lightmap wrote");
+  using ByteArray = py::array_t<uint8_t, py::array::c_style | py::array::forcecast>;
+  const ByteArray state = ByteArray::ensure(v.attr("state"));
+  if (!state || state.ndim() != 2) throw UsageError("lightmap", "state must be an (H, W) array");
+  LightmapResult lm;
+  lm.height = int(state.shape(0)), lm.width = int(state.shape(1));
+  lm.state.assign(state.data(), state.data() + state.size());
+  lm.uvSet = v.attr("uv_set").cast<int>();
+  auto plane = [&](const char* name, LightmapProduct p, std::vector<float>& dst, int ndim) -> FloatArray {
+    if (!py::hasattr(v, name) || v.attr(name).is_none()) return FloatArray();
+    FloatArray a = FloatArray::ensure(v.attr(name));
+    if (!a || (a.ndim() != ndim && !(p == kLightmapTransport && a.ndim() == 4)) || a.shape(0) != lm.height ||
+        a.shape(1) != lm.width)
+      throw UsageError("lightmap", std::string(name) + " must be an array of the state's (H, W) size");
+    dst.assign(a.data(), a.data() + a.size());
+    lm.products |= p;
+    return a;
+  };
+  plane("ao", kLightmapAo, lm.ao, 2);
+  plane("bent", kLightmapBent, lm.bent, 3);
+  plane("bent_tangent", kLightmapBentTangent, lm.bentTangent, 3);
+  plane("irradiance", kLightmapIrradiance, lm.irradiance, 3);
+  if (plane("sh", kLightmapSh, lm.sh, 4)) lm.shOrder = v.attr("sh_order").cast<int>();
+  if (const FloatArray t = plane("transport", kLightmapTransport, lm.transport, 3)) {
+    const py::ssize_t nc = t.shape(t.ndim() - 1);
+    while (py::ssize_t(lm.order) * lm.order < nc) ++lm.order;
+    lm.transportChannels = t.ndim() == 4 ? 3 : 1;
+  }
+  return lm;
+}
+
+// Each product of a lightmap on the mesh and as the atlas (prtbake preview lightmap).
+py::array previewLightmap(const py::object& meshObj, const py::object& lightmap, std::pair<int, int> size,
+                          const py::object& view, double exposure, const py::object& out, const std::string& spec) {
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  MeshPreviewOptions o;
+  o.width = size.first, o.height = size.second;
+  if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
+    throw UsageError("size", "must be (width, height), each 16..8192");
+  if (py::isinstance<py::str>(view)) {
+    const std::string v = view.cast<std::string>();
+    if (v == "side") o.yawDeg = 90;
+    else if (v == "top") o.pitchDeg = 90;
+    else if (v != "front") throw UsageError("view", "must be front, side, top or (yaw, pitch) in degrees");
+  } else {
+    const auto yp = view.cast<std::pair<double, double>>();
+    o.yawDeg = yp.first, o.pitchDeg = yp.second;
+  }
+  const LightmapResult lm = lightmapArg(lightmap);
+  LinearImage img;
+  {
+    py::gil_scoped_release nogil;
+    Device d = device(spec);
+    img = renderLightmapPreview(d.rt, *mesh, lm, o);
+  }
+  writePng(out, img, exposure, "prtbake lightmap preview: each product on the mesh and as the atlas");
+  return imageArray(std::move(img));
+}
+
 // Every level of the chain as a lat-long panel and the split-sum spheres (prtbake preview prefilter).
 py::array previewPrefilter(const py::object& source, const py::kwargs& kw) {
   const int width = kw.contains("panel_width") ? kw["panel_width"].cast<int>() : 256;
@@ -922,6 +990,9 @@ PYBIND11_MODULE(_prtbake, m) {
   m.def("preview_mesh", &previewMesh, py::arg("mesh"), py::arg("transport"), py::arg("radiance"), py::kw_only(),
         py::arg("size") = std::pair<int, int>(800, 600), py::arg("view") = "front", py::arg("rotate_light") = 0.0,
         py::arg("exposure") = 0.0, py::arg("out") = py::none(), py::arg("device") = "");
+  m.def("preview_lightmap", &previewLightmap, py::arg("mesh"), py::arg("lightmap"), py::kw_only(),
+        py::arg("size") = std::pair<int, int>(800, 600), py::arg("view") = "front", py::arg("exposure") = 0.0,
+        py::arg("out") = py::none(), py::arg("device") = "");
   m.def("preview_prefilter", &previewPrefilter, py::arg("source"));
   m.def("preview_lut", &previewLut, py::arg("lut"), py::kw_only(), py::arg("size") = 256, py::arg("out") = py::none());
   // Each product's keywords as the one declaration gives them: {product: [(key, kind, default, values, help)]},

@@ -27,10 +27,10 @@ import numpy as _np
 
 from . import _prtbake
 from ._prtbake import (DeviceError, Error, InputError, Mesh, OutputError, __version__, devices, preview_env,
-                       preview_lut, preview_mesh, preview_prefilter, read_exr, rotate, run)
+                       preview_lightmap, preview_lut, preview_mesh, preview_prefilter, read_exr, rotate, run)
 
 __all__ = ["env", "rotate", "transport", "glossy", "lut", "prefilter", "ibl", "probes", "lightmap", "run", "devices", "read_exr",
-           "preview_env", "preview_mesh", "preview_lut", "preview_prefilter",
+           "preview_env", "preview_mesh", "preview_lightmap", "preview_lut", "preview_prefilter",
            "keywords", "Mesh", "Error", "InputError", "DeviceError", "OutputError", "EnvResult",
            "TransportResult", "GlossyResult", "LutResult", "PrefilterResult", "IblResult", "ProbeGridResult", "LightmapResult",
            "RunResult"]

@@ -101,6 +101,10 @@ def stubs() -> str:
         "                 radiance: Union[ArrayLike, EnvResult], *, size: Tuple[int, int] = ...,",
         "                 view: Union[str, Tuple[float, float]] = ..., rotate_light: float = ..., exposure: float = ...,",
         "                 out: Optional[StrPath] = None, device: str = ...) -> NDArray[np.float32]: ...",
+        "def preview_lightmap(mesh: Union[Mesh, StrPath], lightmap: Union[LightmapResult, StrPath], *,",
+        "                     size: Tuple[int, int] = ..., view: Union[str, Tuple[float, float]] = ...,",
+        "                     exposure: float = ..., out: Optional[StrPath] = None, device: str = ...)"
+        " -> NDArray[np.float32]: ...",
         "def preview_prefilter(source: Union[StrPath, ArrayLike], *, panel_width: int = ...,",
         "                      out: Optional[StrPath] = None, **keywords: Any) -> NDArray[np.float32]: ...",
         "def preview_lut(lut: LutResult, *, size: int = ..., out: Optional[StrPath] = None) -> NDArray[np.float32]: ...",

@@ -566,6 +566,15 @@ def test_lightmap_matches_the_command(tmp_path):
     assert np.array_equal(sh["SH3.G"], r.sh[:, :, 3, 1])
     assert r.ao.base is not None  # the library's vector, not a copy
     assert r.ao.min() < 0.9 and r.uv_set == 0  # the roof shades the floor
+    # The preview: of the command's directory and of the library's result, as the command draws it.
+    cli("preview", "lightmap", obj, "--lightmap", tmp_path / "lm", "-o", tmp_path / "cmd_lm.png", "--size", "96x64",
+        "--view", "top")
+    img = prtbake.preview_lightmap(obj, tmp_path / "lm", size=(96, 64), view="top", out=tmp_path / "py_lm.png")
+    assert img.shape == (3 * 64, 96 + 64, 3) and img.dtype == np.float32
+    assert np.array_equal(png_pixels(tmp_path / "cmd_lm.png"), png_pixels(tmp_path / "py_lm.png"))
+    assert np.array_equal(prtbake.preview_lightmap(obj, r, size=(96, 64), view="top"), img)
+    with pytest.raises(ValueError, match="LightmapResult"):
+        prtbake.preview_lightmap(obj, 3)
     # The same mesh from arrays (OBJ's v flipped to glTF's convention) bakes the same texels.
     m = prtbake.Mesh.load(obj)
     assert m.uv_sets == [0]
