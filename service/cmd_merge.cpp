@@ -8,6 +8,7 @@
 // the recorded SHA-256; then the coefficients are concatenated in vertex order and
 // written through the same writers as a one-process run (bit-identical outputs),
 // followed by the job's manifest, so a later `prtbake run` sees the job up to date.
+#include <array>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -73,14 +74,17 @@ std::string partialProblem(const jobs::Job& job, int i, int n, json* manifest) {
   const std::string path = part.outputs.front().path;
   if (report.value("partial_sha256", "") != sha256File(path))
     return "shard " + s.name() + " is not usable: " + path + " does not match its manifest's SHA-256";
-  // Transport and glossy shards hold vertex ranges, probe shards ranges of the grid's probes.
-  const bool probes = report.contains("grid_probes");
-  const auto [first, count] =
-      jobs::vertexRange(jobs::manifestInt(report, probes ? "grid_probes" : "mesh_vertices", size_t(0)), i, n);
-  if (jobs::manifestInt(report, probes ? "first_probe" : "first_vertex", size_t(1) << 62) != first ||
-      jobs::manifestInt(report, probes ? "probe_count" : "vertex_count", size_t(1) << 62) != count)
-    return "shard " + s.name() + " is not usable: its " + (probes ? "probe" : "vertex") + " range does not match shard " +
-           s.name();
+  // Transport and glossy shards hold vertex ranges, probe shards ranges of the grid's probes,
+  // lightmap shards ranges of the texels' samples.
+  const bool probes = report.contains("grid_probes"), texels = report.contains("lightmap_samples");
+  using Keys = std::array<const char*, 4>;  // the total, the range's first and count, what is counted
+  const Keys keys = probes   ? Keys{"grid_probes", "first_probe", "probe_count", "probe"}
+                    : texels ? Keys{"lightmap_samples", "first_sample", "sample_count", "sample"}
+                             : Keys{"mesh_vertices", "first_vertex", "vertex_count", "vertex"};
+  const auto [first, count] = jobs::vertexRange(jobs::manifestInt(report, keys[0], size_t(0)), i, n);
+  if (jobs::manifestInt(report, keys[1], size_t(1) << 62) != first ||
+      jobs::manifestInt(report, keys[2], size_t(1) << 62) != count)
+    return "shard " + s.name() + " is not usable: its " + keys[3] + " range does not match shard " + s.name();
   return "";
 }
 
@@ -100,6 +104,7 @@ std::vector<std::string> mergeSplit(const jobs::Job& job, int n, json* info) {
   if (!problems.empty()) return problems;
   if (job.type->name == "glossy") return jobs::mergeGlossySplit(job, n, manifests, info);
   if (job.type->name == "probes") return jobs::mergeProbesSplit(job, n, manifests, info);
+  if (job.type->name == "lightmap") return jobs::mergeLightmapSplit(job, n, manifests, info);
 
   const TransportOptions options = jobs::transportOptionsFrom(job.params);
   TransportResult r;
@@ -191,8 +196,9 @@ int runMerge(const CommandLine& cl) {
           }
           ++merged;
           reporter.status("[merged] " + job.label + " (" + std::to_string(n) + " shards, " +
-                          (info.contains("probes") ? std::to_string(jobs::manifestInt(info, "probes", size_t(0))) + " probes, "
-                                                   : std::to_string(jobs::manifestInt(info, "vertices", size_t(0))) + " vertices, ") +
+                          (info.contains("probes")   ? std::to_string(jobs::manifestInt(info, "probes", size_t(0))) + " probes, "
+                           : info.contains("texels") ? std::to_string(jobs::manifestInt(info, "texels", size_t(0))) + " texels, "
+                                                     : std::to_string(jobs::manifestInt(info, "vertices", size_t(0))) + " vertices, ") +
                           formatSeconds(secondsSince(tJob)) + ")");
           reporter.event({{"event", "job_end"}, {"id", job.label}, {"status", "merged"}});
         } catch (const std::exception& e) {

@@ -2,9 +2,12 @@
 // its keys are the options of `prtbake lightmap`, declared once here; the executor bakes the
 // products asked for and writes the outputs named (one image per product and format, the AO's
 // PNG, the sidecar).
+#include <algorithm>
 #include <cmath>
 
 #include "jobs.h"
+#include "prtbake/hash.h"
+#include "shard.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/glossy.h"
@@ -61,6 +64,7 @@ std::vector<std::pair<std::string, std::string>> lightmapOutputBytes(const std::
 json lightmapReport(const LightmapResult& lm) {
   return {{"size", lm.width}, {"uv_set", lm.uvSet}, {"baked", lm.baked}, {"moved", lm.moved}, {"buried", lm.buried},
           {"dilated", lm.dilated}, {"charts", lm.charts}, {"samples_per_texel", lm.samples}, {"rays", lm.rays},
+          {"standard_error_max", lm.maxStdError}, {"standard_error_mean", lm.meanStdError},
           {"device", lm.device},
           {"timings", {{"total_seconds", lm.totalSeconds}, {"bake_seconds", lm.bakeSeconds},
                        {"unocclude_seconds", lm.unoccludeSeconds}, {"raster_seconds", lm.rasterSeconds},
@@ -88,7 +92,105 @@ ExecResult runLightmap(const Job& job, ExecContext& ctx) {
   return result;
 }
 
+// One shard's sample range of a split lightmap job: the samples' rows, not repaired.
+ExecResult runLightmapPart(const Job& job, ExecContext& ctx) {
+  const json& p = job.params;
+  const int index = p.at("shard").at("index").get<int>(), count = p.at("shard").at("count").get<int>();
+  LightmapOptions o = lightmapOptionsFrom(p);
+  const Mesh mesh = loadMesh(job.input);
+  std::vector<std::string> read = mesh.inputFiles;
+  const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
+  const LightmapSamples samples = lightmapSamples(mesh, o);
+  const size_t total = samples.texelOf.size();
+  const auto [first, n] = vertexRange(total, index, count);
+  o.sampleRange = {first, n};
+  const LightmapResult lm = computeLightmap(ctx.runtime(), mesh, env, o);
+  const std::string bytes = lightmapRangeNpyBytes(lm, samples.texelOf, first, n);
+  writeFileAtomic(ctx.output("npy"), bytes);
+  ExecResult result;
+  result.inputFiles = filesRead(job, read);
+  result.report = lightmapReport(lm);
+  result.report["shard"] = {{"index", index}, {"count", count}};
+  result.report["first_sample"] = first;
+  result.report["sample_count"] = n;
+  result.report["lightmap_samples"] = total;
+  result.report["order"] = lm.order;
+  result.report["transport_channels"] = lm.transportChannels;
+  result.report["partial_sha256"] = sha256Hex(bytes.data(), bytes.size());
+  return result;
+}
+
 }  // namespace
+
+const JobType& lightmapPartialType() {
+  static const JobType type = [] {
+    JobType t;
+    t.name = "lightmap_shard";
+    t.input = InputKind::File;
+    t.outputKinds = {"npy"};
+    t.execute = runLightmapPart;
+    return t;
+  }();
+  return type;
+}
+
+std::vector<std::string> mergeLightmapSplit(const Job& job, int n, const std::vector<json>& manifests, json* info) {
+  const json& p = job.params;
+  const LightmapOptions o = lightmapOptionsFrom(p);
+  const Mesh mesh = loadMesh(job.input);
+  LightmapSamples samples = lightmapSamples(mesh, o);
+  const size_t total = samples.texelOf.size();
+  const json& first = manifests[0]["report"];
+  if (manifestInt(first, "lightmap_samples", size_t(0)) != total)
+    throw InputError(job.input, "gives " + std::to_string(total) + " samples; the shards saw " +
+                                    std::to_string(manifestInt(first, "lightmap_samples", size_t(0))));
+  LightmapResult& lm = samples.lm;
+  lm.order = first.value("order", o.order);
+  lm.transportChannels = first.value("transport_channels", 1);
+  lm.shOrder = o.shOrder;
+  const size_t texels = lm.texels(), nc = size_t(lm.order) * lm.order;
+  if (o.products & kLightmapAo) lm.ao.assign(texels, 0.0f);
+  if (o.products & kLightmapBent) lm.bent.assign(texels * 3, 0.0f);
+  if ((o.products & kLightmapBent) && !mesh.tangents.empty()) lm.bentTangent.assign(texels * 3, 0.0f);
+  if (o.products & kLightmapIrradiance) lm.irradiance.assign(texels * 3, 0.0f);
+  if (o.products & kLightmapTransport) lm.transport.assign(texels * size_t(lm.transportChannels) * nc, 0.0f);
+  if (o.products & kLightmapSh) lm.sh.assign(texels * 3 * size_t(o.shOrder) * o.shOrder, 0.0f);
+  lm.state.assign(texels, uint8_t(TexelState::Empty));
+  double seconds = 0;
+  for (int i = 0; i < n; ++i) {
+    const json& rep = manifests[size_t(i)]["report"];
+    const std::string path = partialPath(job, i, n);
+    size_t rows = 0, columns = 0;
+    const std::vector<float> part = readPartialNpy(path, &rows, &columns);
+    if (manifestInt(rep, "lightmap_samples", size_t(0)) != total || rows != manifestInt(rep, "sample_count", size_t(0)))
+      throw InputError(path, "holds another range than the job's " + std::to_string(total) + " samples give shard " +
+                                 ShardSpec{i, n}.name());
+    addLightmapRange(lm, samples.texelOf, manifestInt(rep, "first_sample", size_t(0)), part, rows, columns, path);
+    lm.rays += manifestInt(rep, "rays", uint64_t(0));
+    lm.maxStdError = std::max(lm.maxStdError, rep.value("standard_error_max", 0.0));
+    lm.meanStdError += rep.value("standard_error_mean", 0.0) * double(rows) / double(std::max<size_t>(total, 1));
+    const json& t = rep["timings"];
+    lm.rasterSeconds += t.value("raster_seconds", 0.0), lm.unoccludeSeconds += t.value("unocclude_seconds", 0.0);
+    lm.bakeSeconds += t.value("bake_seconds", 0.0);
+    seconds += t.value("total_seconds", 0.0);
+  }
+  for (uint32_t t : samples.texelOf) {
+    const auto st = TexelState(lm.state[t]);
+    if (st == TexelState::Empty) return {"the shards hold no row for texel " + std::to_string(t)};
+    lm.baked += st == TexelState::Baked, lm.moved += st == TexelState::Moved, lm.buried += st == TexelState::Buried;
+  }
+  lm.samples = first.value("samples_per_texel", o.samples);
+  lm.device = first.value("device", std::string());
+  repairLightmap(mesh, o, samples.usable, lm);
+  lm.totalSeconds = seconds + lm.repairSeconds;
+  std::map<std::string, std::string> outputs;
+  for (const auto& out : job.outputs) outputs[out.kind] = out.path;
+  removeOldManifest(job);
+  for (const auto& [path, bytes] : lightmapOutputBytes(outputs, job.input, mesh, p, o, lm)) writeFileAtomic(path, bytes);
+  writeMergedManifest(job, manifests[0], lm.device, seconds, lightmapReport(lm));
+  *info = {{"texels", lm.baked + lm.moved + lm.buried}};
+  return {};
+}
 
 JobType lightmapJobType() {
   JobType t;
@@ -156,9 +258,13 @@ JobType lightmapJobType() {
       problems.push_back({"order", "the sh product takes orders up to " + std::to_string(kMaxGlossyOrder)});
     if (raw.contains("albedo") && p["bounces"] == 0) problems.push_back({"albedo", "only applies with bounces >= 1"});
     if (raw.contains("env_order") && !raw.contains("env")) problems.push_back({"env_order", "only applies to an environment map"});
+    if (raw.contains("split") && raw["split"] == json(true) && raw.contains("tolerance"))
+      problems.push_back({"split", "a split bake takes a fixed number of samples (each shard's pilot would see other texels): "
+                                   "give samples, or remove split"});
     return problems;
   };
   t.execute = runLightmap;
+  t.splittable = true;
   return t;
 }
 

@@ -121,6 +121,10 @@ std::vector<std::pair<std::string, std::string>> lightmapOutputBytes(const std::
                                                                      const json& params, const LightmapOptions& options,
                                                                      const LightmapResult& lightmap);
 json lightmapReport(const LightmapResult& lightmap);
+// A split lightmap job (docs/scaleout.md): each shard bakes a range of the samples (the partial
+// .npy of lightmapRangeNpyBytes), the merge assembles them and runs the repairs once.
+const JobType& lightmapPartialType();
+std::vector<std::string> mergeLightmapSplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
 std::vector<std::string> mergeGlossySplit(const Job& job, int shards, const std::vector<json>& manifests, json* info);
 
 // The parameters of `type` from command-line texts (key → text, flags ""): each value read

@@ -113,9 +113,10 @@ std::string failureMarkerPath(const Job& job, int index, int count) {
 
 Job partialJob(const Job& job, ShardSpec s) {
   Job part = job;
-  part.type = job.type->name == "glossy"   ? &glossyPartialType()
-              : job.type->name == "probes" ? &probesPartialType()
-                                           : &partialType();
+  part.type = job.type->name == "glossy"     ? &glossyPartialType()
+              : job.type->name == "probes"   ? &probesPartialType()
+              : job.type->name == "lightmap" ? &lightmapPartialType()
+                                             : &partialType();
   part.label = job.label + " [shard " + s.name() + "]";
   part.outputs = {{"npy", partialPath(job, s.index, s.count)}};
   part.manifestPath = part.outputs.front().path + ".manifest.json";

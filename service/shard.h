@@ -9,7 +9,8 @@
 //   mesh, writing a partial result <first output>.shard-I-of-N.npy with its own
 //   manifest (<partial>.manifest.json) next to the job's first output. `prtbake
 //   merge` concatenates the partials into the job's outputs, bit-identical to a
-//   one-process run on the same device type.
+//   one-process run on the same device type. Glossy, probes and lightmap jobs split alike
+//   (ranges of vertices, of the grid's probes, of the texels' samples; docs/scaleout.md).
 // A shard whose job fails records why in <first output>.shard-I-of-N.failed.json
 // (removed when the job later succeeds), so that merge can name failed shards.
 #pragma once

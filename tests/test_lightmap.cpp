@@ -255,6 +255,112 @@ TEST_CASE("Lightmap: a wall on a low-poly floor: no light under it, no shadow bl
   CHECK(raw.moved == 0);
 }
 
+TEST_CASE("Lightmap: a bake split into sample ranges and repaired once equals the whole bake", "[lightmap][shard]") {
+  // The wall on the floor (samples moved out and buried) with the box's six charts (seams to
+  // stitch): three ranges, each baking its samples with the rays they take in the whole bake,
+  // assembled and repaired, give the whole bake's every texel bit for bit.
+  Mesh m;
+  addQuad(m, std::array<Vec3, 4>{Vec3{-1, -1, 0}, Vec3{1, -1, 0}, Vec3{1, 1, 0}, Vec3{-1, 1, 0}}.data(), {0, 0, 1, 0.5});
+  addBox(m, {0.04, -1.2, -0.05}, {0.135, 1.2, 0.6}, {0, 0.6, 1, 0.9});
+  LightmapOptions o;
+  o.size = 32;
+  o.samples = 64;
+  o.products = kLightmapAo | kLightmapBent | kLightmapIrradiance | kLightmapSh;
+  o.shOrder = 2;
+  const ShCoeffs env = constantEnv(0.8);
+  const LightmapResult whole = computeLightmap(test::runtime(), m, env, o);
+  const LightmapSamples samples = lightmapSamples(m, o);
+  const size_t total = samples.texelOf.size();
+  LightmapResult joined = samples.lm;
+  joined.ao.assign(whole.ao.size(), 0.0f), joined.bent.assign(whole.bent.size(), 0.0f);
+  joined.irradiance.assign(whole.irradiance.size(), 0.0f), joined.sh.assign(whole.sh.size(), 0.0f);
+  joined.shOrder = 2;
+  for (int k = 0; k < 3; ++k) {
+    LightmapOptions part = o;
+    part.sampleRange = {total * k / 3, total * (k + 1) / 3 - total * k / 3};
+    const LightmapResult r = computeLightmap(test::runtime(), m, env, part);
+    CHECK(r.dilated == 0);  // not repaired
+    for (size_t t = 0; t < r.texels(); ++t) {
+      if (TexelState(r.state[t]) == TexelState::Empty) continue;
+      joined.state[t] = r.state[t];
+      joined.ao[t] = r.ao[t];
+      std::copy_n(&r.bent[3 * t], 3, &joined.bent[3 * t]);
+      std::copy_n(&r.irradiance[3 * t], 3, &joined.irradiance[3 * t]);
+      std::copy_n(&r.sh[12 * t], 12, &joined.sh[12 * t]);
+    }
+  }
+  repairLightmap(m, o, samples.usable, joined);
+  CHECK(whole.moved > 0);
+  CHECK(whole.seamEdges > 0);
+  CHECK(joined.state == whole.state);
+  CHECK(joined.ao == whole.ao);
+  CHECK(joined.bent == whole.bent);
+  CHECK(joined.irradiance == whole.irradiance);
+  CHECK(joined.sh == whole.sh);
+  CHECK(joined.dilated == whole.dilated);
+  // The same split as jobs: three shards' partial rows merged, the outputs byte for byte those of
+  // the job run whole (OBJ's v is 1 − v of the mesh's glTF convention).
+  const std::string dir = test::tempDir("lightmap-split");
+  {
+    std::ofstream obj(dir + "/wall.obj");
+    for (size_t v = 0; v < m.vertexCount(); ++v)
+      obj << "v " << m.positions[3 * v] << ' ' << m.positions[3 * v + 1] << ' ' << m.positions[3 * v + 2] << "\nvt "
+          << m.uvs[0][2 * v] << ' ' << 1 - m.uvs[0][2 * v + 1] << "\nvn " << m.normals[3 * v] << ' ' << m.normals[3 * v + 1]
+          << ' ' << m.normals[3 * v + 2] << '\n';
+    for (size_t t = 0; t < m.triangleCount(); ++t) {
+      obj << 'f';
+      for (int k = 0; k < 3; ++k) obj << ' ' << m.indices[3 * t + k] + 1 << '/' << m.indices[3 * t + k] + 1 << '/' << m.indices[3 * t + k] + 1;
+      obj << '\n';
+    }
+  }
+  auto job = [&](const std::string& id, const std::string& out, bool split) {
+    nlohmann::json j = {{"id", id}, {"type", "lightmap"}, {"input", "wall.obj"}, {"size", 32}, {"samples", 64},
+                        {"products", "ao,bent,irradiance,sh"}, {"sh_order", 2},
+                        {"outputs", {{"ao_exr", out + "/ao.exr"}, {"ao_png", out + "/ao.png"}, {"bent_exr", out + "/bent.exr"},
+                                     {"irradiance_ktx2", out + "/irradiance.ktx2"}, {"sh_exr", out + "/sh.exr"},
+                                     {"json", out + "/lightmap.json"}}}};
+    if (split) j["split"] = true;
+    return j;
+  };
+  std::ofstream(dir + "/jobs.json") << nlohmann::json{{"jobs", {job("split", "s", true), job("whole", "w", false)}}}.dump();
+  for (int i = 0; i < 3; ++i) {
+    const auto r = test::runCli("run '" + dir + "/jobs.json' --shard " + std::to_string(i) + "/3 --quiet");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+  }
+  const auto merged = test::runCli("merge '" + dir + "/jobs.json' --shards 3");
+  INFO(merged.output);
+  REQUIRE(merged.exitCode == 0);
+  CHECK(merged.output.find("texels") != std::string::npos);
+  for (const char* f : {"ao.exr", "ao.png", "bent.exr", "irradiance.ktx2", "sh.exr"}) {
+    INFO(f);
+    const std::string w = test::readText(dir + "/w/" + f);
+    CHECK(!w.empty());
+    CHECK(test::readText(dir + "/s/" + f) == w);
+  }
+  const auto splitSide = nlohmann::json::parse(test::readText(dir + "/s/lightmap.json"));
+  const auto wholeSide = nlohmann::json::parse(test::readText(dir + "/w/lightmap.json"));
+  CHECK(splitSide["texels"] == wholeSide["texels"]);
+  CHECK(splitSide["samples"]["rays"] == wholeSide["samples"]["rays"]);
+  CHECK(splitSide["error"]["max_std_error"] == wholeSide["error"]["max_std_error"]);
+  // The mean: the shards' means weighted by their samples (the sum's order differs: 1e-12).
+  CHECK(splitSide["error"]["mean_std_error"].get<double>() ==
+        Approx(wholeSide["error"]["mean_std_error"].get<double>()).epsilon(1e-12));
+  std::ofstream(dir + "/tol.json") << R"({"jobs": [{"id": "t", "type": "lightmap", "input": "wall.obj", "size": 8,
+      "tolerance": 0.05, "split": true, "outputs": {"ao_exr": "t/ao.exr"}}]})";
+  const auto tol = test::runCli("run '" + dir + "/tol.json' --dry-run");
+  CHECK(tol.exitCode != 0);
+  CHECK(tol.output.find("a split bake takes a fixed number of samples") != std::string::npos);
+
+  // A range beyond the samples, and with a tolerance: refused.
+  LightmapOptions bad = o;
+  bad.sampleRange = {total, 1};
+  CHECK_THROWS_AS(computeLightmap(test::runtime(), m, env, bad), UsageError);
+  bad.sampleRange = {0, 1};
+  bad.tolerance = 0.01;
+  CHECK_THROWS_WITH(computeLightmap(test::runtime(), m, env, bad), Catch::Contains("fixed number of samples"));
+}
+
 TEST_CASE("Lightmap: a sliver triangle thinner than a texel is baked (conservative rasterisation)", "[lightmap]") {
   // A floor triangle 0.2 texels wide in UV, lying between texel centres: no centre is inside.
   Mesh m;

@@ -43,6 +43,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "prtbake/mesh.h"
@@ -89,6 +90,10 @@ struct LightmapOptions {
   bool unocclude = true;       // move samples out of closed geometry
   bool stitchSeams = true;     // least-squares agreement of the two sides of every UV seam
   int packetWidth = 16;        // the transport kernels' packet width (0: one ray at a time)
+  // A shard of a split bake: {first, count} of the samples in lightmapSamples' order. Only those
+  // are baked (each with the rays it takes in the whole bake), the other texels stay Empty and
+  // nothing is repaired: repairLightmap runs once on the assembled map. Not with tolerance.
+  std::optional<std::pair<size_t, size_t>> sampleRange;
 };
 
 // Texel states (LightmapResult::state).
@@ -149,6 +154,11 @@ LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& options
 LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& environment,
                                const LightmapOptions& options);
 
+// The repairs computeLightmap ends with (dilation, seam stitching, bent normals made unit again),
+// for a map assembled from the shards of a split bake; `usable`: lightmapSamples(mesh, options).usable.
+void repairLightmap(const Mesh& mesh, const LightmapOptions& options, const std::vector<char>& usable,
+                    LightmapResult& lightmap);
+
 // --- outputs (*Bytes: the file's contents; the command writes them atomically) ---
 // OpenEXR of one product: ao "Y"; bent and irradiance "R", "G", "B"; transport "T0" … (grey)
 // or "R.T0" …, "G.T0" …, "B.T0" …; sh "SH0.R", "SH0.G", "SH0.B", "SH1.R" … (one RGB layer per
@@ -167,6 +177,18 @@ std::string lightmapGltfBytes(const std::string& path, const Mesh& mesh, const L
 // The sidecar JSON: parameters, conventions, counts, samples, errors, timings.
 std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOptions& options,
                                  const LightmapResult& lm);
+
+// A split bake's shard (computeLightmap with sampleRange) as a float32 .npy of one row per sample of
+// the range, in order: the texel's state, then the values of every product the result holds, in
+// the order ao, bent, bent_tangent, irradiance, transport, sh. `texelOf`: lightmapSamples' texels;
+// {first, count}: the shard's sampleRange.
+std::string lightmapRangeNpyBytes(const LightmapResult& part, const std::vector<uint32_t>& texelOf, size_t first,
+                                  size_t count);
+// Scatters such rows (`rows` × `columns` floats) for the samples [first, first + rows) into `lm`,
+// whose planes are already sized as the shards' results hold them. Throws InputError naming
+// `path` when the columns or the range do not fit.
+void addLightmapRange(LightmapResult& lm, const std::vector<uint32_t>& texelOf, size_t first, const std::vector<float>& values,
+                      size_t rows, size_t columns, const std::string& path);
 
 // Reads back what prtbake lightmap wrote to `dir`: the UV set from lightmap.json and every
 // product whose OpenEXR is there (ao, bent, bent_tangent, irradiance, sh, transport), all of one

@@ -127,6 +127,9 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
 // normal of the face the point lies on (its rays start ε along it, on the shading normal's side).
 struct SurfacePoints {
   std::vector<float> positions, normals, faceNormals;
+  // Point k takes the rays of index firstIndex + k (below: "point i"), so that a range of a
+  // larger set of points bakes as it would within the whole set (a split lightmap's shard).
+  size_t firstIndex = 0;
   size_t count() const { return positions.size() / 3; }
 };
 

@@ -619,6 +619,67 @@ LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& o) {
   return out;
 }
 
+namespace {
+
+// A split bake's shard: the samples [first, first + count) alone, each keeping its index in the
+// whole set (its rays), the other texels Empty.
+void keepSampleRange(LightmapSamples& s, const LightmapOptions& o) {
+  const auto [first, count] = *o.sampleRange;
+  const size_t total = s.texelOf.size();
+  if (first > total || count > total - first)
+    throw UsageError("sample range", "[" + std::to_string(first) + ", " + std::to_string(first + count) + ") is not within the " +
+                                         std::to_string(total) + " samples");
+  if (o.tolerance > 0)
+    throw UsageError("tolerance", "a split bake takes a fixed number of samples (each shard's pilot would see other texels)");
+  auto slice = [&](auto& v, size_t per) {
+    if (v.empty()) return;
+    v.erase(v.begin() + ptrdiff_t((first + count) * per), v.end());
+    v.erase(v.begin(), v.begin() + ptrdiff_t(first * per));
+  };
+  slice(s.points.positions, 3), slice(s.points.normals, 3), slice(s.points.faceNormals, 3);
+  s.points.firstIndex = first;
+  slice(s.texelOf, 1), slice(s.reach, 1), slice(s.tangentFrames, 6);
+  s.lm.state.assign(s.lm.texels(), uint8_t(TexelState::Empty));
+  for (uint32_t t : s.texelOf) s.lm.state[t] = uint8_t(TexelState::Baked);
+}
+
+}  // namespace
+
+void repairLightmap(const Mesh& mesh, const LightmapOptions& o, const std::vector<char>& usable, LightmapResult& lm) {
+  if (usable.size() != mesh.triangleCount() || !mesh.hasUvSet(lm.uvSet) || lm.state.size() != lm.texels())
+    throw UsageError("lightmap", "the repairs need the mesh, its usable triangles and the lightmap they were baked with");
+  const std::vector<float>& uv = mesh.uvs[size_t(lm.uvSet)];
+  const auto tRepair = Clock::now();
+  std::vector<std::vector<float>*> planes;
+  std::vector<int> widths;
+  auto add = [&](std::vector<float>& p, int c) {
+    if (!p.empty()) planes.push_back(&p), widths.push_back(c);
+  };
+  add(lm.ao, 1);
+  add(lm.bent, 3);
+  add(lm.irradiance, 3);
+  add(lm.transport, lm.transportChannels * lm.order * lm.order);
+  add(lm.sh, 3 * lm.shOrder * lm.shOrder);
+  // Tangent frames may differ across a UV seam: the tangent-space bent normal is dilated, not stitched.
+  std::vector<std::vector<float>*> dilated = planes;
+  std::vector<int> dilatedWidths = widths;
+  if (!lm.bentTangent.empty()) dilated.push_back(&lm.bentTangent), dilatedWidths.push_back(3);
+  dilate(lm, o.dilation, dilated, dilatedWidths);
+  if (o.stitchSeams) {
+    const SeamStats seams = stitchSeams(mesh, uv, usable, lm, planes, widths);
+    lm.seamEdges = seams.edges, lm.seamJumpBefore = seams.jumpBefore, lm.seamJumpAfter = seams.jumpAfter;
+  }
+  // Dilated and stitched bent normals are means of unit vectors: renormalised.
+  for (std::vector<float>* plane : {&lm.bent, &lm.bentTangent})
+    for (size_t i = 0; i < plane->size() / 3; ++i) {
+      float* b = &(*plane)[3 * i];
+      const double len = std::sqrt(double(b[0]) * b[0] + double(b[1]) * b[1] + double(b[2]) * b[2]);
+      if (len > 0)
+        for (int c = 0; c < 3; ++c) b[c] = float(b[c] / len);
+    }
+  lm.repairSeconds = secondsSince(tRepair);
+}
+
 LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& env, const LightmapOptions& o) {
   const auto tStart = Clock::now();
   if (o.products == 0 || (o.products & ~kLightmapAllProducts)) throw UsageError("--products", "no product asked for");
@@ -632,13 +693,13 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   if (o.maxDistance != 0 && !(o.maxDistance > 0 && std::isfinite(o.maxDistance)))
     throw UsageError("--max-distance", "must be a finite number > 0");
   LightmapSamples samples = lightmapSamples(mesh, o);
+  if (o.sampleRange) keepSampleRange(samples, o);
   LightmapResult& lm = samples.lm;
   lm.device = rt.deviceLabel();
   SurfacePoints& pts = samples.points;
   const std::vector<uint32_t>& texelOf = samples.texelOf;
   const std::vector<float>& frames = samples.tangentFrames;
   const std::vector<char>& usable = samples.usable;
-  const std::vector<float>& uv = mesh.uvs[size_t(lm.uvSet)];
 
   if (o.unocclude) {
     const auto t0 = Clock::now();
@@ -750,37 +811,10 @@ LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& en
   if (lm.order == 0) lm.order = o.order;
   lm.bakeSeconds = secondsSince(tBake);
 
-  const auto tRepair = Clock::now();
-  std::vector<std::vector<float>*> planes;
-  std::vector<int> widths;
-  auto add = [&](std::vector<float>& p, int c) {
-    if (!p.empty()) planes.push_back(&p), widths.push_back(c);
-  };
-  add(lm.ao, 1);
-  add(lm.bent, 3);
-  add(lm.irradiance, 3);
-  add(lm.transport, lm.transportChannels * lm.order * lm.order);
-  add(lm.sh, 3 * lm.shOrder * lm.shOrder);
-  // Tangent frames may differ across a UV seam: the tangent-space bent normal is dilated, not stitched.
-  std::vector<std::vector<float>*> dilated = planes;
-  std::vector<int> dilatedWidths = widths;
-  if (!lm.bentTangent.empty()) dilated.push_back(&lm.bentTangent), dilatedWidths.push_back(3);
-  dilate(lm, o.dilation, dilated, dilatedWidths);
-  if (o.stitchSeams) {
-    const SeamStats seams = stitchSeams(mesh, uv, usable, lm, planes, widths);
-    lm.seamEdges = seams.edges, lm.seamJumpBefore = seams.jumpBefore, lm.seamJumpAfter = seams.jumpAfter;
-  }
-  // Dilated and stitched bent normals are means of unit vectors: renormalised.
-  for (std::vector<float>* plane : {&lm.bent, &lm.bentTangent})
-    for (size_t i = 0; i < plane->size() / 3; ++i) {
-      float* b = &(*plane)[3 * i];
-      const double len = std::sqrt(double(b[0]) * b[0] + double(b[1]) * b[1] + double(b[2]) * b[2]);
-      if (len > 0)
-        for (int c = 0; c < 3; ++c) b[c] = float(b[c] / len);
-    }
-  lm.repairSeconds = secondsSince(tRepair);
+  if (!o.sampleRange) repairLightmap(mesh, o, usable, lm);
   lm.totalSeconds = secondsSince(tStart);
   return lm;
 }
+
 
 }  // namespace prtbake

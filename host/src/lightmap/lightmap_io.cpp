@@ -2,11 +2,13 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <type_traits>
 #include <nlohmann/json.hpp>
 
 #include "io/gltf.h"
 
 #include "io/ktx2.h"
+#include "io/npy.h"
 #include "io/png_chunks.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -210,6 +212,60 @@ std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOpt
                   {"total_seconds", lm.totalSeconds}};
   j["device"] = lm.device;
   return j.dump(2) + "\n";
+}
+
+namespace {
+
+// The planes a shard's rows carry after the state, in their order, with their widths.
+template <class Result>
+auto rangePlanes(Result& lm) {
+  using Plane = std::conditional_t<std::is_const_v<Result>, const std::vector<float>, std::vector<float>>;
+  std::vector<std::pair<Plane*, size_t>> planes;
+  for (Plane* v : {&lm.ao, &lm.bent, &lm.bentTangent, &lm.irradiance, &lm.transport, &lm.sh})
+    if (!v->empty()) planes.emplace_back(v, v->size() / lm.texels());
+  return planes;
+}
+
+}  // namespace
+
+std::string lightmapRangeNpyBytes(const LightmapResult& part, const std::vector<uint32_t>& texelOf, size_t first,
+                                  size_t count) {
+  npy::checkLittleEndian();
+  const auto planes = rangePlanes(part);
+  size_t columns = 1;
+  for (const auto& p : planes) columns += p.second;
+  std::vector<float> rows(count * columns);
+  for (size_t k = 0; k < count; ++k) {
+    const size_t t = texelOf.at(first + k);
+    float* r = &rows[k * columns];
+    *r++ = float(part.state[t]);
+    for (const auto& [plane, width] : planes) r = std::copy_n(&(*plane)[t * width], width, r);
+  }
+  std::string out = npy::header("<f4", {count, columns});
+  out.append(reinterpret_cast<const char*>(rows.data()), rows.size() * sizeof(float));
+  return out;
+}
+
+void addLightmapRange(LightmapResult& lm, const std::vector<uint32_t>& texelOf, size_t first, const std::vector<float>& values,
+                      size_t rows, size_t columns, const std::string& path) {
+  const auto planes = rangePlanes(lm);
+  size_t expected = 1;
+  for (const auto& p : planes) expected += p.second;
+  if (columns != expected)
+    throw InputError(path, "has " + std::to_string(columns) + " columns; the job's products take " + std::to_string(expected));
+  if (first > texelOf.size() || rows > texelOf.size() - first || values.size() != rows * columns)
+    throw InputError(path, "holds samples beyond the lightmap's " + std::to_string(texelOf.size()));
+  for (size_t k = 0; k < rows; ++k) {
+    const size_t t = texelOf[first + k];
+    const float* r = &values[k * columns];
+    const float state = *r++;
+    if (!(state >= 1 && state <= 3)) throw InputError(path, "row " + std::to_string(k) + ": not a baked, moved or buried texel");
+    lm.state[t] = uint8_t(state);
+    for (const auto& [plane, width] : planes) {
+      std::copy_n(r, width, &(*plane)[t * width]);
+      r += width;
+    }
+  }
 }
 
 LightmapResult readLightmap(const std::string& dir) {

@@ -233,7 +233,9 @@ void sceneScale(const Mesh& mesh, const TransportOptions& o, RaySetup& s) {
 // of the shading normal n, so that a flipped winding does not bury the origin), and an
 // orthonormal basis about n (Duff et al. 2017) rotated by a per-index angle. A zero n marks
 // a point without a normal (origin p, frame zero).
-void setPoint(RaySetup& s, size_t v, const float* p, const float* shading, std::array<double, 3> g, uint64_t seed) {
+// v: where the point is stored; rotation: the index its frame's rotation is drawn for.
+void setPoint(RaySetup& s, size_t v, const float* p, const float* shading, std::array<double, 3> g, uint64_t seed,
+              size_t rotation) {
   for (int c = 0; c < 3; ++c) s.points[3 * v + c] = p[c];
   double n[3] = {shading[0], shading[1], shading[2]};
   const double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
@@ -256,7 +258,7 @@ void setPoint(RaySetup& s, size_t v, const float* p, const float* shading, std::
   const double a = -1.0 / (sign + n[2]), b = n[0] * n[1] * a;
   const double t0[3] = {1 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]};
   const double b0[3] = {b, sign + n[1] * n[1] * a, -n[1]};
-  const double phi = 2 * kPi * unitFromBits(splitmix64(seed ^ (0xD1B54A32D192ED03ull * (v + 1))));
+  const double phi = 2 * kPi * unitFromBits(splitmix64(seed ^ (0xD1B54A32D192ED03ull * (rotation + 1))));
   const double cp = std::cos(phi), sp = std::sin(phi);
   for (int c = 0; c < 3; ++c) {
     s.frames[12 * v + c] = float(cp * t0[c] + sp * b0[c]);
@@ -302,7 +304,7 @@ RaySetup makeRaySetup(const Mesh& mesh, const TransportOptions& o, bool withDire
   }
   if (withDirections) s.dirs = directionChunk(o.samples, 0, o.samples, o.seed, o.sampler);
   allocate(s, nv);
-  for (size_t v = 0; v < nv; ++v) setPoint(s, v, &p[3 * v], &mesh.normals[3 * v], geo[weld[v]], o.seed);
+  for (size_t v = 0; v < nv; ++v) setPoint(s, v, &p[3 * v], &mesh.normals[3 * v], geo[weld[v]], o.seed, v);
   return s;
 }
 
@@ -313,7 +315,7 @@ RaySetup makePointRaySetup(const Mesh& mesh, const SurfacePoints& pts, const Tra
   allocate(s, n);
   for (size_t v = 0; v < n; ++v) {
     const float* f = &pts.faceNormals[3 * v];
-    setPoint(s, v, &pts.positions[3 * v], &pts.normals[3 * v], {f[0], f[1], f[2]}, o.seed);
+    setPoint(s, v, &pts.positions[3 * v], &pts.normals[3 * v], {f[0], f[1], f[2]}, o.seed, pts.firstIndex + v);
   }
   return s;
 }
