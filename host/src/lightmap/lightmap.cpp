@@ -664,6 +664,9 @@ void repairLightmap(const Mesh& mesh, const LightmapOptions& o, const std::vecto
   std::vector<std::vector<float>*> dilated = planes;
   std::vector<int> dilatedWidths = widths;
   if (!lm.bentTangent.empty()) dilated.push_back(&lm.bentTangent), dilatedWidths.push_back(3);
+  for (size_t k = 0; k < dilated.size(); ++k)
+    if (dilatedWidths[k] < 1 || dilated[k]->size() != lm.texels() * size_t(dilatedWidths[k]))
+      throw UsageError("lightmap", "a product's plane does not hold its values for every texel");
   dilate(lm, o.dilation, dilated, dilatedWidths);
   if (o.stitchSeams) {
     const SeamStats seams = stitchSeams(mesh, uv, usable, lm, planes, widths);
