@@ -673,6 +673,16 @@ TEST_CASE("Lightmap: UV checks: a missing set, non-finite UVs, overlapping chart
   appendMesh(twice, other);
   CHECK_THROWS_WITH(computeLightmap(test::runtime(), twice, constantEnv(1), o),
                     Catch::Contains("UV charts overlap") && Catch::Contains("texel (") && Catch::Contains("triangle 0"));
+  // Stacked: a second floor elsewhere in space on the very same UV square (its edges' UVs equal
+  // the first's, so the two join into one chart), as Khronos' MultiUVTest maps all six faces of
+  // its cube onto one square of TEXCOORD_1.
+  Mesh stacked = m;
+  Mesh copy;
+  addFloor(copy, 1, {0, 0, 0.6, 1});
+  for (float& p : copy.positions) p += 5;
+  appendMesh(stacked, copy);
+  CHECK_THROWS_WITH(computeLightmap(test::runtime(), stacked, constantEnv(1), o),
+                    Catch::Contains("UV charts overlap") && Catch::Contains("of the same chart (UVs stacked or folded)"));
   // Charts side by side closer than a texel are not an overlap.
   Mesh beside = m;
   Mesh near;

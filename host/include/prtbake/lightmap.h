@@ -149,8 +149,9 @@ LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& options
 // Bakes the products asked for under the environment's radiance coefficients (irradiance).
 // Throws UsageError for bad options; InputError naming the mesh for a missing UV set, UVs
 // that are not finite, no triangle of positive UV area, or overlapping charts (a texel
-// centre inside triangles of two charts; charts: triangles joined by edges whose UV
-// coordinates agree), naming the texel and the two triangles.
+// centre inside triangles of two charts, or strictly inside two triangles of one chart: UVs
+// stacked or folded; charts: triangles joined by edges whose UV coordinates agree), naming
+// the texel and the two triangles.
 LightmapResult computeLightmap(Runtime& rt, const Mesh& mesh, const ShCoeffs& environment,
                                const LightmapOptions& options);
 

@@ -131,7 +131,12 @@ struct TexelHit {
   float w[3] = {0, 0, 0};
   float dist2 = 0;
   bool inside = false, contested = false;
+  bool strict = false;  // the centre lies inside by more than kStrictInside (not on an edge)
 };
+
+// Barycentric margin that puts a texel centre strictly inside a triangle: two triangles of one
+// chart share at most an edge, whose centres compute to within rounding (~1e-16) of 0 on it.
+constexpr double kStrictInside = 1e-7;
 
 void rasterise(const Mesh& mesh, const std::vector<float>& uv, int W, int H, const std::vector<char>& usable,
                Charts& charts, std::vector<TexelHit>& texels) {
@@ -177,19 +182,23 @@ void rasterise(const Mesh& mesh, const std::vector<float>& uv, int W, int H, con
           for (double& w : b) w = 0.999 * w + 0.001 / 3;
         }
         TexelHit& h = texels[size_t(y) * W + x];
-        if (h.tri >= 0 && h.chart != chart) {
-          if (inside && h.inside)
-            throw InputError(subjectOf(mesh),
-                             "UV charts overlap: texel (" + std::to_string(x) + ", " + std::to_string(y) + ") of the " +
-                                 std::to_string(W) + "x" + std::to_string(H) + " lightmap is covered by triangle " +
-                                 std::to_string(h.tri) + " and triangle " + std::to_string(t) +
-                                 " of another chart (a lightmap needs a UV set whose charts do not overlap)");
-          h.contested = true;
-        }
+        const bool strict = inside && std::min({b[0], b[1], b[2]}) > kStrictInside;
+        // Two charts' triangles both holding the centre, or two of one chart both holding it
+        // strictly (UVs stacked or folded onto themselves: charts join by edges with equal UVs,
+        // so copies of one UV square join into one chart).
+        if (h.tri >= 0 && inside && h.inside && (h.chart != chart || (strict && h.strict)))
+          throw InputError(subjectOf(mesh),
+                           "UV charts overlap: texel (" + std::to_string(x) + ", " + std::to_string(y) + ") of the " +
+                               std::to_string(W) + "x" + std::to_string(H) + " lightmap is covered by triangle " +
+                               std::to_string(h.tri) + " and triangle " + std::to_string(t) +
+                               (h.chart != chart ? " of another chart" : " of the same chart (UVs stacked or folded)") +
+                               " (a lightmap needs a UV set whose charts do not overlap)");
+        if (h.tri >= 0 && h.chart != chart) h.contested = true;
         if (h.tri >= 0 && (h.inside || (!inside && h.dist2 <= d2))) continue;
         h.tri = int32_t(t);
         h.chart = chart;
         h.inside = inside;
+        h.strict = strict;
         h.dist2 = float(d2);
         for (int k = 0; k < 3; ++k) h.w[k] = float(b[k]);
       }
