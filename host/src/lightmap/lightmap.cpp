@@ -633,7 +633,7 @@ namespace {
 // A split bake's shard: the samples [first, first + count) alone, each keeping its index in the
 // whole set (its rays), the other texels Empty.
 void keepSampleRange(LightmapSamples& s, const LightmapOptions& o) {
-  const auto [first, count] = *o.sampleRange;
+  const size_t first = o.sampleRange->first, count = o.sampleRange->second;  // (lambdas cannot capture bindings in C++17)
   const size_t total = s.texelOf.size();
   if (first > total || count > total - first)
     throw UsageError("sample range", "[" + std::to_string(first) + ", " + std::to_string(first + count) + ") is not within the " +
