@@ -2,6 +2,7 @@
 #include "runner.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -402,6 +403,20 @@ void Runner::execute(const Job& job, OutputDirs& dirs, Clock::time_point t0) {
   // then the outputs as a set, then the new manifest, last. Until that is written, a
   // failure (an exception out of here) puts the previous outputs and manifest back.
   const std::string manifestPath = dirs.pinned(job.manifestPath);
+  // Two workers may run one job at once (a paused worker's claim taken back, then the worker
+  // resumed): their commits take turns on a lock of the manifest's directory, so that the
+  // outputs and the manifest in place always come from the same run (the queue's load test
+  // saw an output of one run beside the manifest of the other).
+  struct CommitLock {
+    int fd;
+    explicit CommitLock(const std::string& dir) : fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)) {
+      while (fd >= 0 && ::flock(fd, LOCK_EX) != 0 && errno == EINTR) {
+      }
+    }
+    ~CommitLock() {
+      if (fd >= 0) ::close(fd);  // closing releases the lock
+    }
+  } commitLock(dirOf(manifestPath));
   staged.setAside(manifestPath, job.manifestPath);
   staged.commit();
   json timings = {{"run_seconds", runSeconds}, {"total_seconds", secondsSince(t0)}};
