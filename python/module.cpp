@@ -738,10 +738,8 @@ py::array previewEnv(const py::object& source, const py::kwargs& kw) {
   return imageArray(std::move(img));
 }
 
-py::array previewMesh(const py::object& meshObj, const py::object& transport, const py::object& radiance,
-                      std::pair<int, int> size, const py::object& view, double rotateLight, double exposure,
-                      const py::object& out, const std::string& spec) {
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+// The mesh previews' image size and camera: (width, height), and front, side, top or (yaw, pitch).
+MeshPreviewOptions previewView(std::pair<int, int> size, const py::object& view) {
   MeshPreviewOptions o;
   o.width = size.first, o.height = size.second;
   if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
@@ -755,6 +753,14 @@ py::array previewMesh(const py::object& meshObj, const py::object& transport, co
     const auto yp = view.cast<std::pair<double, double>>();
     o.yawDeg = yp.first, o.pitchDeg = yp.second;
   }
+  return o;
+}
+
+py::array previewMesh(const py::object& meshObj, const py::object& transport, const py::object& radiance,
+                      std::pair<int, int> size, const py::object& view, double rotateLight, double exposure,
+                      const py::object& out, const std::string& spec) {
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  MeshPreviewOptions o = previewView(size, view);
   o.lightRotationDeg = rotateLight;
   const FloatArray t = FloatArray::ensure(py::hasattr(transport, "coeffs") ? py::object(transport.attr("coeffs"))
                                                                           : transport);
@@ -822,19 +828,7 @@ LightmapResult lightmapArg(const py::object& v) {
 py::array previewLightmap(const py::object& meshObj, const py::object& lightmap, std::pair<int, int> size,
                           const py::object& view, double exposure, const py::object& out, const std::string& spec) {
   const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
-  MeshPreviewOptions o;
-  o.width = size.first, o.height = size.second;
-  if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
-    throw UsageError("size", "must be (width, height), each 16..8192");
-  if (py::isinstance<py::str>(view)) {
-    const std::string v = view.cast<std::string>();
-    if (v == "side") o.yawDeg = 90;
-    else if (v == "top") o.pitchDeg = 90;
-    else if (v != "front") throw UsageError("view", "must be front, side, top or (yaw, pitch) in degrees");
-  } else {
-    const auto yp = view.cast<std::pair<double, double>>();
-    o.yawDeg = yp.first, o.pitchDeg = yp.second;
-  }
+  MeshPreviewOptions o = previewView(size, view);
   const LightmapResult lm = lightmapArg(lightmap);
   LinearImage img;
   {
