@@ -1,12 +1,13 @@
 // The library calls that bench/bench_python.py times through the Python module, made from C++:
 // the same inputs and options, so that the difference is the binding's cost.
 //
-//   bench_call lut|env|transport CALLS [MESH]
+//   bench_call lut CALLS [SIZE [SAMPLES]] | env CALLS [WIDTH] | transport CALLS [MESH]
 //   bench_call peak 1 MESH: the peak resident memory (MiB) before and after one computeTransport
 //   of MESH at order 8, 64 samples, the output's size and the resident memory at start-up
 //   (bench_python.py compares the module's with it).
-//   lut: computeLut, 16², 64 samples; env: projectEnvironment of a 64×32 lat-long of ones,
-//   order 3; transport: computeTransport of MESH, shadowed, 64 samples.
+//   lut: computeLut, SIZE² (16), SAMPLES (64); env: validateEnvironment and projectEnvironment of
+//   a WIDTH×WIDTH/2 (64) lat-long of ones, order 3; transport: computeTransport of MESH, shadowed,
+//   64 samples.
 // Prints one line: "<what> <calls> <median seconds per call> <min seconds per call>", each
 // call timed alone after 20 warm-up calls (program builds, first-touch pages).
 #include <algorithm>
@@ -45,7 +46,7 @@ static Runtime& rt0() {
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: bench_call lut|env|transport CALLS [MESH]\n");
+    std::fprintf(stderr, "usage: bench_call lut CALLS [SIZE [SAMPLES]] | env CALLS [WIDTH] | transport CALLS [MESH]\n");
     return 2;
   }
   const std::string what = argv[1];
@@ -63,8 +64,11 @@ int main(int argc, char** argv) {
                 startup);
     return 0;
   }
-  if ((what != "lut" && what != "env" && what != "transport") || calls < 1) {
-    std::fprintf(stderr, "usage: bench_call lut|env|transport CALLS [MESH]\n");
+  const int size = what == "lut" && argc > 3 ? std::atoi(argv[3]) : 16;
+  const int samples = what == "lut" && argc > 4 ? std::atoi(argv[4]) : 64;
+  const int width = what == "env" && argc > 3 ? std::atoi(argv[3]) : 64;
+  if ((what != "lut" && what != "env" && what != "transport") || calls < 1 || size < 1 || samples < 1 || width < 2) {
+    std::fprintf(stderr, "usage: bench_call lut CALLS [SIZE [SAMPLES]] | env CALLS [WIDTH] | transport CALLS [MESH]\n");
     return 2;
   }
   Runtime& rt = rt0();
@@ -72,15 +76,16 @@ int main(int argc, char** argv) {
   if (what == "transport") mesh = loadMesh(argc > 3 ? argv[3] : "assets/scene.gltf");
   EnvMap env;
   env.layout = EnvLayout::LatLong;
-  env.width = 64, env.height = 32;
-  env.rgb.assign(size_t(64) * 32 * 3, 1.0f);
+  env.width = width, env.height = width / 2;
+  env.rgb.assign(size_t(width) * (width / 2) * 3, 1.0f);
   auto once = [&]() {
     if (what == "lut") {
       LutOptions o;
-      o.size = 16, o.samples = 64;
+      o.size = size, o.samples = samples;
       computeLut(rt, o);
     } else if (what == "env") {
       EnvProjectOptions o;
+      validateEnvironment(env, false);  // as the module checks an array (and loadEnvironment a file)
       projectEnvironment(rt, env, o);
     } else {
       TransportOptions o;

@@ -1,11 +1,12 @@
 """The Python module's cost beside the library's, in one run: writes bench/results/python.md.
 
-1. Overhead: a binding call on a small input against the same library call from C++
-   (build/bench/bench_call): lut 16² at 64 samples, env of a 64×32 lat-long array, transport of
-   assets/scene.gltf (4,906 vertices) at 64 samples. ROUNDS rounds (default 5), each timing
-   CALLS calls (default 200) of every case in C++ then in Python, each call alone after 20
-   warm-up calls; the median per call of each round, then the median over rounds, and the
-   per-round ratio Python/C++.
+1. Overhead: a binding call against the same library call from C++ (build/bench/bench_call),
+   from the smallest inputs up: lut 16² at 64 samples to the command's default 128² at 1,024,
+   env of a 64×32 to a 2048×1024 lat-long array, transport of assets/scene.gltf (4,906 vertices)
+   at 64 samples. ROUNDS rounds (default 5), each timing CALLS calls (default 200; fewer for the
+   slow cases) of every case in C++ then in Python, each call alone after 20 warm-up calls; the
+   median per call of each round, then the median over rounds, the per-round ratio Python/C++,
+   and the difference: the binding's cost per call.
 2. Memory: the knot of bench_embree.sh (102,400 vertices) → transport at order 8, 64 samples →
    NumPy, in a fresh Python process (peak resident memory from getrusage, the mesh as arrays
    and from the file), beside `prtbake transport` of the same mesh and options (/usr/bin/time).
@@ -33,24 +34,35 @@ CALLS = int(os.environ.get("CALLS", "200"))
 SCENE = ROOT / "assets" / "scene.gltf"
 
 
-def python_call(what):
-    sky = np.ones((32, 64, 3), np.float32)
-    mesh = prtbake.Mesh.load(SCENE)
-    fn = {"lut": lambda: prtbake.lut(size=16, samples=64),
-          "env": lambda: prtbake.env(sky, order=3),
-          "transport": lambda: prtbake.transport(mesh, samples=64)}[what]
+# (label, bench_call's arguments after CALLS, calls per round / CALLS)
+CASES = [("lut 16², 64 samples", ["lut", "16", "64"], 1), ("lut 32², 256 samples", ["lut", "32", "256"], 1),
+         ("lut 128², 1,024 samples (the default)", ["lut", "128", "1024"], 0.1),
+         ("env 64×32", ["env", "64"], 1), ("env 256×128", ["env", "256"], 1), ("env 2048×1024", ["env", "2048"], 0.25),
+         ("transport, scene.gltf, 64 samples", ["transport", str(SCENE)], 0.25)]
+
+
+def python_call(args, calls):
+    what = args[0]
+    if what == "lut":
+        fn = lambda: prtbake.lut(size=int(args[1]), samples=int(args[2]))  # noqa: E731
+    elif what == "env":
+        sky = np.ones((int(args[1]) // 2, int(args[1]), 3), np.float32)
+        fn = lambda: prtbake.env(sky, order=3)  # noqa: E731
+    else:
+        mesh = prtbake.Mesh.load(args[1])
+        fn = lambda: prtbake.transport(mesh, samples=64)  # noqa: E731
     for _ in range(20):
         fn()
     t = []
-    for _ in range(CALLS):
+    for _ in range(calls):
         t0 = time.perf_counter()
         fn()
         t.append(time.perf_counter() - t0)
     return statistics.median(t)
 
 
-def cxx_call(what):
-    out = subprocess.run([str(BUILD / "bench" / "bench_call"), what, str(CALLS), str(SCENE)], cwd=ROOT,
+def cxx_call(args, calls):
+    out = subprocess.run([str(BUILD / "bench" / "bench_call"), args[0], str(calls)] + args[1:], cwd=ROOT,
                          capture_output=True, text=True, check=True).stdout.split()
     return float(out[2])
 
@@ -63,14 +75,15 @@ def peak_mib(code):
 
 def main():
     rows = []
-    for what in ("lut", "env", "transport") if os.environ.get("PART") != "memory" else ():
+    for label, args, share in CASES if os.environ.get("PART") != "memory" else ():
         c, p = [], []
+        calls = max(10, int(CALLS * share))
         for _ in range(ROUNDS):
-            c.append(cxx_call(what))
-            p.append(python_call(what))
+            c.append(cxx_call(args, calls))
+            p.append(python_call(args, calls))
         ratios = [b / a for a, b in zip(c, p)]
-        rows.append((what, statistics.median(c), statistics.median(p), statistics.median(ratios), min(ratios),
-                     max(ratios)))
+        rows.append((label, statistics.median(c), statistics.median(p), statistics.median(ratios), min(ratios),
+                     max(ratios), statistics.median([b - a for a, b in zip(c, p)])))
     with tempfile.TemporaryDirectory() as work:
         knot = pathlib.Path(work) / "knot.obj"
         subprocess.run([str(BUILD / "bench" / "bench_embree"), "--write-knot", str(knot)], check=True)
@@ -98,17 +111,18 @@ def main():
     lines = ["# The Python module beside the library", "",
              "bench/bench_python.py, %s, %d cores (%s), CPU device; %d rounds of %d calls each." % (
                  time.strftime("%Y-%m-%d"), os.cpu_count(), cpu, ROUNDS, CALLS), "",
-             "## A call on a small input", "",
-             "| call | C++ library [ms] | Python module [ms] | Python / C++, median of rounds (min–max) |",
-             "|---|---|---|---|"]
-    for what, c, p, r, lo, hi in rows:
-        lines.append("| %s | %.3f | %.3f | %.3f (%.3f–%.3f) |" % (what, 1e3 * c, 1e3 * p, r, lo, hi))
+             "## A call, from the smallest inputs up", "",
+             "| call | C++ library [ms] | Python module [ms] | Python / C++, median of rounds (min–max) | Python − C++ [µs] |",
+             "|---|---|---|---|---|"]
+    for label, c, p, r, lo, hi, d in rows:
+        lines.append("| %s | %.3f | %.3f | %.3f (%.3f–%.3f) | %.0f |" % (label, 1e3 * c, 1e3 * p, r, lo, hi, 1e6 * d))
     b, a, out, s1 = from_file.split()
     b2, a2, _, s2 = from_arrays.split()
     b3, a3, _, s3 = cxx.split()
-    lines += ["", "lut: 16², 64 samples; env: a 64×32 lat-long array of ones, order 3 (the Python call converts",
-              "nothing: float32, C order); transport: assets/scene.gltf (4,906 vertices), shadowed, 64 samples (the",
-              "Python call takes the loaded prtbake.Mesh).", "",
+    lines += ["", "env: a lat-long array of ones, order 3; both check every value for NaN, Inf and negatives",
+              "(validateEnvironment, as the module does for an array and loadEnvironment for a file), then project",
+              "(the Python call converts nothing: float32, C order); transport: assets/scene.gltf (4,906",
+              "vertices), shadowed, 64 samples (the Python call takes the loaded prtbake.Mesh).", "",
               "## Memory: mesh → transport → NumPy", "",
               "The knot (102,400 vertices, 204,800 triangles), order 8, 64 samples: the output is %s MiB." % out, "",
               "| path | resident at start-up [MiB] | peak before the call [MiB] | peak after [MiB] | peak after − start-up [MiB] |",

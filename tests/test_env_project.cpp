@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <functional>
+#include <iterator>
 
 #include "prtbake/env.h"
 #include "prtbake/error.h"
@@ -178,6 +181,37 @@ TEST_CASE("Nonsense orders and invalid texels are rejected", "[env]") {
   validateEnvironment(e, true);
   REQUIRE(e.clampedTexels == 2);
   REQUIRE(e.rgb[5] == 0.0f);
+}
+
+TEST_CASE("Invalid texels: the bitwise count agrees with the comparisons at every edge value", "[env]") {
+  // The count works on the bits (envmap.cpp); the oracle is the definition, !(v >= 0) || isinf(v),
+  // and !isfinite for the NaN/Inf share. -0 and +denormals are valid, -denormals are not; the
+  // values sit at the first, scattered and last positions (the vector loop's head and tail).
+  const uint32_t edges[] = {0x00000000u, 0x80000000u, 0x00000001u, 0x80000001u, 0x7f7fffffu, 0xff7fffffu,
+                            0x7f800000u, 0xff800000u, 0x7fc00000u, 0xffc00000u, 0x7f800001u, 0xffffffffu};
+  for (bool view : {false, true}) {
+    EnvMap e = makeCube(8, [](const double*) { return Rgb{1, 1, 1}; });
+    std::vector<float> caller(e.rgb.begin(), e.rgb.end());
+    float* px = view ? caller.data() : e.rgb.data();
+    long long values = 0, nonFinite = 0;
+    for (size_t k = 0; k < std::size(edges); ++k) {
+      const size_t at = k == 0 ? 0 : k + 1 == std::size(edges) ? e.rgb.size() - 1 : 29 * k;
+      std::memcpy(px + at, &edges[k], sizeof(float));
+      values += !(px[at] >= 0.0f) || std::isinf(px[at]);
+      nonFinite += !std::isfinite(px[at]);
+    }
+    REQUIRE(values == 8);
+    REQUIRE(nonFinite == 6);
+    if (view) e.rgbView = caller.data();
+    e.source = "edges";
+    REQUIRE_THROWS_WITH(validateEnvironment(e, false),
+                        Catch::Contains("8 invalid values (6 NaN/Inf, 2 negative)") && Catch::Contains("edges"));
+    validateEnvironment(e, true);
+    REQUIRE(e.clampedTexels == 8);
+    REQUIRE(e.rgbView == nullptr);
+    for (float v : e.rgb) REQUIRE((v >= 0.0f && std::isfinite(v)));
+    REQUIRE(std::signbit(e.rgb[29]));  // -0 kept as it was: valid
+  }
 }
 
 TEST_CASE("Quantities: irradiance is the clamped-cosine convolution", "[env]") {
