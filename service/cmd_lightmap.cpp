@@ -28,7 +28,7 @@ int runLightmap(const CommandLine& cl) {
     if (!(products & parseLightmapProducts(name.substr(0, name.find('_'))))) continue;
     if (name == "bent_tangent" && mesh.tangents.empty()) continue;
     const std::string base = dir + "/" + name;
-    const bool exrOnly = name == "transport" || name == "sh";
+    const bool exrOnly = name == "transport";
     if (format != "ktx2" || exrOnly) outputs[name + "_exr"] = base + ".exr";
     if (format != "exr" && !exrOnly) outputs[name + "_ktx2"] = base + ".ktx2";
     if (name == "ao") outputs["ao_png"] = base + ".png";
@@ -62,7 +62,8 @@ PRTBAKE_COMMAND(Command{
     "prtbake lightmap MESH -o DIR [--uv N] [--size N | --texels-per-unit D] [--products LIST]\n"
     "       [--samples N | --tolerance E] [--env SH.json|ENVMAP] [--order N] [--sh-order 2|3]\n"
     "       [--max-distance D] [--bounces B] [--format exr|ktx2|both] [--gltf OUT.glb|OUT.gltf]\n"
-    "Writes DIR/<product>.exr (or .ktx2, RGBA16F; transport and sh: OpenEXR only) for each product asked\n"
+    "Writes DIR/<product>.exr (or .ktx2, RGBA16F, sh an array of a layer per coefficient; transport:\n"
+    "OpenEXR only) for each product asked\n"
     "for (default ao; alpha: the texel's validity; bent also as bent_tangent, in tangent space, where the\n"
     "mesh has tangents), DIR/ao.png (linear, 8 or 16 bits) with ao, and\n"
     "DIR/lightmap.json (counts, samples, timings); --gltf also a copy of the glTF whose materials use the\n"

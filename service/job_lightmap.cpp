@@ -197,7 +197,7 @@ JobType lightmapJobType() {
   t.name = "lightmap";
   t.input = InputKind::File;
   t.outputKinds = {"ao_exr", "ao_ktx2", "ao_png", "bent_exr", "bent_ktx2", "bent_tangent_exr", "bent_tangent_ktx2", "irradiance_exr", "irradiance_ktx2",
-                   "transport_exr", "sh_exr", "gltf", "json"};
+                   "transport_exr", "sh_exr", "sh_ktx2", "gltf", "json"};
   t.keys = {integer("uv", nullptr, 0, 7, "the UV set (TEXCOORD_n) of the lightmap (none: 1 where the mesh has it, else 0)"),
             integer("size", nullptr, 1, kMaxLightmapSize, "the lightmap's width and height in texels (none: 512, or from texels_per_unit)"),
             number("texels_per_unit", nullptr, 1e-9, 1e9,

@@ -787,9 +787,37 @@ TEST_CASE("Lightmap: the command writes every output or none, and refuses bad in
   INFO(ok.output);
   REQUIRE(ok.exitCode == 0);
   for (const char* f : {"ao.exr", "ao.ktx2", "ao.png", "bent.exr", "bent.ktx2", "irradiance.exr", "irradiance.ktx2",
-                        "sh.exr", "lightmap.json"})
+                        "sh.exr", "sh.ktx2", "lightmap.json"})
     CHECK(test::fileExists(dir + "/out/" + f));
-  CHECK_FALSE(test::fileExists(dir + "/out/sh.ktx2"));
+  if (test::nodeReady()) {  // sh.ktx2 read by ktx-parse: an array of a layer per coefficient, the EXR's values
+    const auto r = test::runShell("node '" + std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/ktx2_read.mjs' '" + dir +
+                                  "/out/sh.ktx2' --values");
+    INFO(r.output.substr(0, 2000));
+    REQUIRE(r.exitCode == 0);
+    const nlohmann::json k = nlohmann::json::parse(r.output);
+    CHECK(k["vkFormat"] == 97);  // R16G16B16A16_SFLOAT
+    CHECK(k["pixelWidth"] == 16);
+    CHECK(k["pixelHeight"] == 16);
+    CHECK(k["pixelDepth"] == 0);
+    CHECK(k["faceCount"] == 1);
+    CHECK(k["levelCount"] == 1);
+    REQUIRE(k["layerCount"] == 4);  // L1: SH0 … SH3
+    CHECK(k["keyValue"]["prtbake.product"] == "sh");
+    const ExrImage exr = readExr(dir + "/out/sh.exr");
+    const auto& v = k["values"];
+    REQUIRE(v.size() == 4 * 16 * 16 * 4);
+    // Half precision: relative 2^-11 plus the smallest normal half's step, for values near 0.
+    double worst = 0;
+    for (int layer = 0; layer < 4; ++layer)
+      for (size_t i = 0; i < 256; ++i)
+        for (int c = 0; c < 4; ++c) {
+          const std::string name = c == 3 ? "A" : "SH" + std::to_string(layer) + "." + "RGB"[c];
+          REQUIRE(exr.channel(name) != nullptr);
+          const double want = (*exr.channel(name))[i], got = v[(size_t(layer) * 256 + i) * 4 + size_t(c)].get<double>();
+          worst = std::max(worst, std::abs(got - want) / (std::abs(want) * std::ldexp(1.0, -11) + std::ldexp(1.0, -24)));
+        }
+    CHECK(worst <= 1.0);
+  }
   CHECK_FALSE(test::fileExists(dir + "/out/bent_tangent.exr"));  // an OBJ has no tangents
   {  // A job that asks for it anyway: the mesh is named, nothing written.
     std::ofstream(dir + "/tangent_job.json")

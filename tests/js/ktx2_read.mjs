@@ -6,13 +6,16 @@
 //   +X: sc = −z, tc = −y   −X: sc = z, tc = −y   +Y: sc = x, tc = z
 //   −Y: sc = x, tc = −z    +Z: sc = x, tc = −y   −Z: sc = −x, tc = −y
 // With --texels L S it prints instead of the sums every S-th texel (rows and columns ≡ S/2 mod S) of level L
-// as [x, y, z, r, g, b], the direction again from the specification's addressing.
-// Usage: node ktx2_read.mjs FILE.ktx2 [--texels LEVEL STRIDE]
+// as [x, y, z, r, g, b], the direction again from the specification's addressing. With --values it
+// prints instead of the sums level 0's every channel value in the file's order (layers, faces, slices,
+// rows, columns, channels), of any texture, cube or not.
+// Usage: node ktx2_read.mjs FILE.ktx2 [--texels LEVEL STRIDE | --values]
 import { readFileSync } from 'node:fs';
 import { read } from 'ktx-parse';
 
 const file = process.argv[2];
 const texelsAt = process.argv[3] === '--texels' ? [Number(process.argv[4]), Number(process.argv[5])] : null;
+const valuesOnly = process.argv[3] === '--values';
 const c = read(new Uint8Array(readFileSync(file)));
 
 function halfToFloat(h) {
@@ -50,7 +53,7 @@ const out = {
 const bpc = c.typeSize;  // bytes per channel: 2 (half) or 4 (float)
 for (let l = 0; l < c.levels.length; ++l) {
   const n = Math.max(1, c.pixelWidth >> l), data = c.levels[l].levelData;
-  if (texelsAt) {  // the texels alone: skip the per-level sums
+  if (texelsAt || valuesOnly) {  // the texels alone: skip the per-level sums
     out.levels.push({ size: n, byteLength: data.byteLength, uncompressedByteLength: c.levels[l].uncompressedByteLength });
     continue;
   }
@@ -89,5 +92,11 @@ if (texelsAt) {
           v.push(bpc === 2 ? halfToFloat(view.getUint16(at + 2 * k, true)) : view.getFloat32(at + 4 * k, true));
         out.texels.push([d[0] / len, d[1] / len, d[2] / len, ...v]);
       }
+}
+if (valuesOnly) {
+  const data = c.levels[0].levelData, view = new DataView(data.buffer, data.byteOffset, data.byteLength);
+  out.values = [];
+  for (let at = 0; at < data.byteLength; at += bpc)
+    out.values.push(bpc === 2 ? halfToFloat(view.getUint16(at, true)) : view.getFloat32(at, true));
 }
 process.stdout.write(JSON.stringify(out) + '\n');

@@ -68,7 +68,7 @@ void keyValue(std::string& kvd, const std::string& key, const std::string& value
 
 size_t levelTexels(const Layout& l, uint32_t i) {
   const auto dim = [i](uint32_t n) { return size_t(std::max(1u, n >> i)); };
-  return dim(l.width) * dim(l.height) * (l.depth ? dim(l.depth) : 1) * l.faces;
+  return dim(l.width) * dim(l.height) * (l.depth ? dim(l.depth) : 1) * l.faces * std::max(1u, l.layers);
 }
 
 }  // namespace
@@ -94,7 +94,7 @@ std::string rgbaFloatBytes(const Layout& layout, const std::vector<Level>& level
   put32(out, layout.width);          // pixelWidth
   put32(out, layout.height);         // pixelHeight
   put32(out, layout.depth);          // pixelDepth
-  put32(out, 0);                     // layerCount
+  put32(out, layout.layers);         // layerCount
   put32(out, layout.faces);          // faceCount
   put32(out, levels);                // levelCount
   put32(out, 0);                     // supercompressionScheme

@@ -22,11 +22,13 @@ struct Layout {
   uint32_t width = 0, height = 0;
   uint32_t depth = 0;  // pixelDepth: 0 for a 2D or cube texture, the slice count of a 3D one
   uint32_t faces = 1;  // 1, or 6 for a cube (faces +X, −X, +Y, −Y, +Z, −Z)
+  uint32_t layers = 0;  // layerCount: 0 for one texture, the layers of an array
   bool float32 = false;
 };
 
 // One level's texels: `channels` (3: alpha written as 1, or 4) floats per texel, exactly
-// max(1, width >> i) · max(1, height >> i) · max(1, depth >> i) · faces texels for level i.
+// max(1, width >> i) · max(1, height >> i) · max(1, depth >> i) · faces · max(1, layers) texels
+// for level i, layer by layer (KTX 2.0 §3.9.5: layers, then faces, then slices, then rows).
 struct Level {
   const float* texels = nullptr;
   int channels = 4;

@@ -87,18 +87,24 @@ std::string lightmapExrBytes(const LightmapResult& lm, LightmapProduct product, 
 }
 
 std::string lightmapKtx2Bytes(const LightmapResult& lm, LightmapProduct product) {
-  if (product == kLightmapTransport || product == kLightmapSh)
+  if (product == kLightmapTransport)
     throw UsageError("--format", std::string("the ") + productName(product) + " goes to OpenEXR, not KTX2");
   int width = 0;
   const std::vector<float>& plane = planeOf(lm, product, &width);
-  std::vector<float> rgba(lm.texels() * 4);
-  for (size_t i = 0; i < lm.texels(); ++i) {
-    for (int c = 0; c < 3; ++c) rgba[4 * i + c] = plane[i * size_t(width) + (width == 1 ? 0 : c)];
-    rgba[4 * i + 3] = lm.valid(i) ? 1.0f : 0.0f;
-  }
+  // sh: an array texture, layer k holding coefficient k's RGB (the layers of Godot's SH
+  // lightmaps); the others one RGB (ao: grey) texture. Alpha: 1 on valid texels.
+  const size_t n = lm.texels(), layers = product == kLightmapSh ? size_t(lm.shOrder * lm.shOrder) : 1;
+  std::vector<float> rgba(layers * n * 4);
+  for (size_t k = 0; k < layers; ++k)
+    for (size_t i = 0; i < n; ++i) {
+      float* px = &rgba[4 * (k * n + i)];
+      for (size_t c = 0; c < 3; ++c) px[c] = plane[i * size_t(width) + (width == 1 ? 0 : 3 * k + c)];
+      px[3] = lm.valid(i) ? 1.0f : 0.0f;
+    }
   ktx2::Layout layout;
   layout.width = uint32_t(lm.width), layout.height = uint32_t(lm.height);
-  return ktx2::rgbaFloatBytes(layout, {{rgba.data(), 4, lm.texels()}},
+  layout.layers = product == kLightmapSh ? uint32_t(layers) : 0;
+  return ktx2::rgbaFloatBytes(layout, {{rgba.data(), 4, layers * n}},
                               {{"prtbake.product", productName(product)}, {"prtbake.uvSet", std::to_string(lm.uvSet)}});
 }
 
