@@ -158,7 +158,7 @@ int accuracy(const Args& a) {
       const double cpu = cpuSeconds() - cpu0;
       for (size_t l = 0; l < r.levels.size() && a.texels > 0; ++l) {
         const PrefilterLevel& lv = r.levels[l];
-        if (lv.spec.alpha == 0) continue;  // r = 0: the resampled source (no lobe to compare)
+        if (lv.alphaUsed == 0) continue;  // the resampled source (GGX r = 0): no lobe to compare
         const std::vector<size_t> idx = pickTexels(env, lv.spec.size, a.texels);
         const Stats s = compare(lv, env, o.lobe, idx, size_t(std::min(a.texels, 6 * lv.spec.size * lv.spec.size)));
         std::printf("| %s | %s | %zu | %d | %.3f | %.4f | %.2e | %.2e | %.2e | %.1e | %.1e | %.3f | %.3f |\n",
