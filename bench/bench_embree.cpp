@@ -7,9 +7,9 @@
 //       T_i = (1/N) Σ_s V(p, ω_s) Y_i(ω_s) summed in double, the same .npy output. Loads
 //       the mesh with prtbake's loader, builds Embree's BVH, traces on T threads (default:
 //       the cores), writes OUT.npy, and prints the phases' times.
-//   bench_embree --write-knot OUT.obj
+//   bench_embree --write-knot OUT.obj [--uv]
 //       Writes the benchmark's torus knot (makeTorusKnot(800, 128): 102,400 vertices,
-//       204,800 triangles) as an OBJ with normals.
+//       204,800 triangles) as an OBJ with normals; --uv adds a lightmap UV set (8 charts).
 #include <embree3/rtcore.h>
 
 #include <algorithm>
@@ -33,8 +33,12 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-int writeKnot(const std::string& path) {
-  const Mesh m = makeTorusKnot(800, 128);
+// The knot as OBJ; with `uv`, also a lightmap UV set: the tube cut into 8 strips of 100 of its
+// 800 rings, each strip unrolled (along the tube, around it) into one cell of a 4 × 2 grid with a
+// margin of 5 % of the cell on each side, so that the charts neither overlap nor touch.
+int writeKnot(const std::string& path, bool uv) {
+  constexpr int kSegments = 800, kSides = 128, kStrips = 8, kRings = kSegments / kStrips;
+  const Mesh m = makeTorusKnot(kSegments, kSides);
   std::ofstream out(path);
   char line[128];
   for (size_t v = 0; v < m.vertexCount(); ++v) {
@@ -45,9 +49,29 @@ int writeKnot(const std::string& path) {
     std::snprintf(line, sizeof line, "vn %.9g %.9g %.9g\n", m.normals[3 * v], m.normals[3 * v + 1], m.normals[3 * v + 2]);
     out << line;
   }
+  // vt of strip s, ring r (0..kRings) and side j (0..kSides): (s · (kRings + 1) + r) · (kSides + 1) + j.
+  auto vtIndex = [&](int s, int r, int j) { return uint32_t((s * (kRings + 1) + r) * (kSides + 1) + j) + 1; };
+  if (uv)
+    for (int s = 0; s < kStrips; ++s)
+      for (int r = 0; r <= kRings; ++r)
+        for (int j = 0; j <= kSides; ++j) {
+          const double u = (s % 4 + 0.05 + 0.9 * r / kRings) / 4, v = (s / 4 + 0.05 + 0.9 * j / kSides) / 2;
+          std::snprintf(line, sizeof line, "vt %.9g %.9g\n", u, v);
+          out << line;
+        }
   for (size_t t = 0; t < m.triangleCount(); ++t) {
     const uint32_t a = m.indices[3 * t] + 1, b = m.indices[3 * t + 1] + 1, c = m.indices[3 * t + 2] + 1;
-    std::snprintf(line, sizeof line, "f %u//%u %u//%u %u//%u\n", a, a, b, b, c, c);
+    if (!uv) {
+      std::snprintf(line, sizeof line, "f %u//%u %u//%u %u//%u\n", a, a, b, b, c, c);
+    } else {
+      // Quad (ring i, side j) makes triangles 2q and 2q + 1 (makeTorusKnot's order); its corners'
+      // rings i and i + 1 and sides j and j + 1 within the strip of ring i, unwrapped.
+      const int q = int(t / 2), i = q / kSides, j = q % kSides, s = i / kRings, r = i % kRings;
+      const uint32_t ta = vtIndex(s, r, j), tb = vtIndex(s, r, j + 1), tc = vtIndex(s, r + 1, j + 1),
+                     td = vtIndex(s, r + 1, j);
+      const uint32_t t0 = ta, t1 = t % 2 ? tc : tb, t2 = t % 2 ? td : tc;  // {a, b, c}, {a, c, d}
+      std::snprintf(line, sizeof line, "f %u/%u/%u %u/%u/%u %u/%u/%u\n", a, t0, a, b, t1, b, c, t2, c);
+    }
     out << line;
   }
   return out ? 0 : 1;
@@ -55,10 +79,11 @@ int writeKnot(const std::string& path) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 3 && std::string(argv[1]) == "--write-knot") return writeKnot(argv[2]);
+  if ((argc == 3 || (argc == 4 && std::string(argv[3]) == "--uv")) && std::string(argv[1]) == "--write-knot")
+    return writeKnot(argv[2], argc == 4);
   if (argc < 3) {
     std::fprintf(stderr, "usage: bench_embree MESH OUT.npy [--samples N] [--order N] [--threads T]\n"
-                         "       bench_embree --write-knot OUT.obj\n");
+                         "       bench_embree --write-knot OUT.obj [--uv]\n");
     return 2;
   }
   TransportOptions o;

@@ -5,7 +5,11 @@
 # compared (mean and max |ΔT_00|), prtbake rerun for bit-identity, and the cost of an
 # interreflection bounce against the direct term. RUNS alternating pairs (default 5: this
 # machine's speed wanders by 15-25 %, so each pair shares its conditions), summarised as
-# the median of each and the per-pair speed ratios. Writes bench/results/embree.md.
+# the median of each and the per-pair speed ratios. Then the other products that trace through the
+# same BVH and packet kernels, on the same knot (with a lightmap UV set): the per-vertex transport,
+# the lightmap's AO (512², 256 rays per texel) and a 32³ probe grid (256 rays per probe), three
+# alternating runs each, rays per second of their ray-tracing phase from their sidecars.
+# Writes bench/results/embree.md.
 #   bash bench/bench_embree.sh [BUILD]     (BUILD: default build/, with bench_embree built)
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -32,6 +36,28 @@ for run in $(seq "$RUNS"); do
   results+=("$(timed "embree#$run" "$EMBREE" "$work/knot.obj" "$work/e$run.npy" --samples 1024)")
 done
 results+=("$(timed "prtbake-1-bounce" "$PRTBAKE" transport "$work/knot.obj" -o "$work/ir.npy" --samples 1024 --mode interreflected --bounces 1 --bounce-tolerance 0 --quiet)")
+# The same traversal in the other products (rays / the seconds of their tracing phase).
+"$EMBREE" --write-knot "$work/knot_uv.obj" --uv
+for run in 1 2 3; do
+  "$PRTBAKE" transport "$work/knot_uv.obj" -o "$work/t$run.npy" --samples 256 --quiet
+  "$PRTBAKE" lightmap "$work/knot_uv.obj" -o "$work/lm$run" --uv 0 --size 512 --samples 256 --products ao --quiet
+  "$PRTBAKE" probes "$work/knot_uv.obj" -o "$work/pr$run" --resolution 32,32,32 --samples 256 --bounces 0 --quiet
+done
+traversal=$(/usr/bin/python3 - "$work" <<'PY'
+import json, statistics, sys
+w = sys.argv[1]
+rows = [("`transport knot.obj --samples 256` (per vertex)", "t%d.json", lambda j: (j["samples"]["rays"], j["timings_s"]["kernels"])),
+        ("`lightmap knot.obj --size 512 --samples 256 --products ao` (per texel)", "lm%d/lightmap.json",
+         lambda j: (j["samples"]["rays"], j["timings"]["bake_seconds"])),
+        ("`probes knot.obj --resolution 32,32,32 --samples 256 --bounces 0` (per probe)", "pr%d/probes.json",
+         lambda j: (j["samples"]["rays"], j["timings_seconds"]["trace"]))]
+print("| command | rays | tracing s (median) | rays/s (median) |")
+print("|---|---|---|---|")
+for label, name, get in rows:
+    v = [get(json.load(open("%s/%s" % (w, name % run)))) for run in (1, 2, 3)]
+    print("| %s | %.4g | %.3f | %.3g |" % (label, v[0][0], statistics.median(s for _, s in v), statistics.median(r / s for r, s in v)))
+PY
+)
 compare=$(python3 - "$work/p1.npy" "$work/e1.npy" "$work/p2.npy" "$work/p3.npy" <<'PY'
 import struct, sys
 def load(path):
@@ -70,5 +96,11 @@ PY
   echo "Coefficients: $compare."
   echo
   echo "The bounce: \`prtbake-1-bounce\` is the interreflected command with one bounce (the same 1024 rays per vertex for the direct term and for the bounce); its cost beyond the direct term is its time minus the shadowed command's."
+  echo
+  echo "## The same traversal in the other products"
+  echo
+  echo "The knot again, with a lightmap UV set (\`bench_embree --write-knot knot.obj --uv\`: 8 charts), three alternating runs of each; tracing s: the transport's kernels, the lightmap's ray pass (bake_seconds: rasterising, moving samples out and the repairs apart), the probes' trace. The transport and the lightmap trace occlusion rays from the surface; the probes' rays start in the open, most of them outside the knot."
+  echo
+  echo "$traversal"
 } > "$OUT"
 cat "$OUT"
