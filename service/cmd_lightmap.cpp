@@ -63,9 +63,9 @@ PRTBAKE_COMMAND(Command{
     "       [--samples N | --tolerance E] [--env SH.json|ENVMAP] [--order N] [--sh-order 2|3]\n"
     "       [--max-distance D] [--bounces B] [--format exr|ktx2|both] [--gltf OUT.glb|OUT.gltf]\n"
     "Writes DIR/<product>.exr (or .ktx2, RGBA16F, sh an array of a layer per coefficient; transport:\n"
-    "OpenEXR only) for each product asked\n"
-    "for (default ao; alpha: the texel's validity; bent also as bent_tangent, in tangent space, where the\n"
-    "mesh has tangents), DIR/ao.png (linear, 8 or 16 bits) with ao, and\n"
+    "OpenEXR only) for each product asked for (default ao; alpha: the texel's validity; bent also as\n"
+    "bent_tangent, in tangent space, where the mesh has tangents), DIR/ao.png (linear, 8 or 16 bits)\n"
+    "with ao, and\n"
     "DIR/lightmap.json (counts, samples, timings); --gltf also a copy of the glTF whose materials use the\n"
     "AO as occlusionTexture on the lightmap's UV set.",
     productOptions("lightmap", {{"output", true, "the output directory (-o)"},

@@ -151,10 +151,10 @@ InvalidTexels countInvalidTexels(EnvMap& env, bool clamp) {
   if (values != env.texelCount() * 3) throw InputError(src, "pixel data has the wrong size");
   InvalidTexels bad;
   if (env.storage() == EnvStorage::Float) {  // the caller's texels (rgbView) are copied only to be clamped
-    // Counted on the bits, without a branch, so that the loop vectorises (8x faster than the
-    // comparisons at 2048x1024): negative is the sign with a non-zero magnitude (-0 is valid),
-    // NaN and Inf have every exponent bit.
-    // 32-bit counts a chunk at a time: the vector lanes stay 32 bits wide.
+    // Counted on the bits without a branch, in 32-bit counts a chunk at a time, so that the loop
+    // vectorises with 32-bit lanes (an env call on a 2048x1024 array from Python: 7.6 -> 2.6 ms):
+    // negative is the sign with a non-zero magnitude (-0 is valid), NaN and Inf have every
+    // exponent bit.
     const float* v = env.floatTexels();
     constexpr size_t kChunk = size_t(1) << 30;
     for (size_t start = 0; start < values; start += kChunk) {
