@@ -1081,6 +1081,59 @@ TEST_CASE("Bad input is an InputError naming the file", "[env_load]") {
     INFO(msg);
     CHECK(msg.rfind(jpg + ": cannot decode image: a Huffman table of", 0) == 0);
     CHECK(msg.find("codes (at most 256)") != std::string::npos);
+    // Scans that use a table no segment before them defined: stb_image 2.27 decoded them
+    // with whatever its decoder's memory held (an AC table's slow path then read far past the
+    // table). The selectors of a scan's first component sit 6 bytes after its marker; the
+    // first component's quantization table 12 bytes after the frame's.
+    REQUIRE(stbi_write_jpg(jpg.c_str(), 32, 16, 3, rgb.data(), 90) != 0);
+    const std::string baseline = readBytes(jpg);
+    auto errorWith = [&](std::string b, size_t at, char value) {
+      b[at] = value;
+      writeBytes(jpg, b);
+      return inputErrorOf([&] { load(jpg); });
+    };
+    const std::string cannot = jpg + ": cannot decode image: ";
+    const std::string undefined = ", which no segment before it defines";
+    const size_t sos = baseline.find("\xff\xda"), sof = baseline.find("\xff\xc0");
+    REQUIRE((sos != std::string::npos && sof != std::string::npos));
+    const std::string scan = "a scan (at byte " + std::to_string(sos) + ") uses ";
+    CHECK(errorWith(baseline, sos + 6, 0x20) == cannot + scan + "DC Huffman table 2" + undefined);
+    CHECK(errorWith(baseline, sos + 6, 0x03) == cannot + scan + "AC Huffman table 3" + undefined);
+    CHECK(errorWith(baseline, sof + 12, 0x02) == cannot + scan + "quantization table 2" + undefined);
+    // A progressive file uses only some of the tables its scans name (tests/images/README.md):
+    // its first DC scan names AC table 0, defined only after it, and loads; a DC
+    // refinement scan uses no Huffman table; an AC scan uses its AC table.
+    const std::string prog = readBytes(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/images/progressive.jpg");
+    std::vector<size_t> scans;
+    for (size_t at = prog.find("\xff\xda"); at != std::string::npos; at = prog.find("\xff\xda", at + 2)) scans.push_back(at);
+    REQUIRE(scans.size() == 10);
+    auto field = [&](size_t scan, size_t k) { return int(uint8_t(prog[scans[scan] + k])); };
+    // Scan 0: 3 components, Ss 0, Ah 0; scan 1: 1 component, Ss 1; scan 6: 3 components, Ss 0, Ah 1.
+    REQUIRE((field(0, 4) == 3 && field(0, 11) == 0 && field(0, 13) >> 4 == 0));
+    REQUIRE((field(1, 4) == 1 && field(1, 7) == 1));
+    REQUIRE((field(6, 4) == 3 && field(6, 11) == 0 && field(6, 13) >> 4 == 1));
+    writeBytes(jpg, prog);
+    CHECK(load(jpg, "latlong").width == 32);
+    writeBytes(jpg, prog.substr(0, scans[6] + 6) + "\x33" + prog.substr(scans[6] + 7));
+    CHECK(load(jpg, "latlong").width == 32);
+    const std::string progScan = [&](size_t i) { return "a scan (at byte " + std::to_string(scans[i]) + ") uses "; }(1);
+    CHECK(errorWith(prog, scans[1] + 6, 0x02) == cannot + progScan + "AC Huffman table 2" + undefined);
+    CHECK(errorWith(prog, scans[0] + 6, 0x20) ==
+          cannot + "a scan (at byte " + std::to_string(scans[0]) + ") uses DC Huffman table 2" + undefined);
+    // A restart interval of 1 MCU with no restart marker in the data: stb_image ends the scan
+    // after the first MCU and leaves the rest of each plane as allocated. Decoded after two
+    // different images whose freed planes it may reuse, the pixels must not differ.
+    const std::string restart = baseline.substr(0, sos) + std::string("\xff\xdd\x00\x04\x00\x01", 6) + baseline.substr(sos);
+    std::vector<std::vector<float>> decoded;
+    for (const unsigned char fill : {30, 220}) {
+      std::vector<unsigned char> other(3 * 32 * 16, fill);
+      REQUIRE(stbi_write_jpg(jpg.c_str(), 32, 16, 3, other.data(), 90) != 0);
+      REQUIRE(load(jpg, "latlong").width == 32);
+      writeBytes(jpg, restart);
+      const EnvMap env = load(jpg, "latlong");
+      decoded.emplace_back(env.rgb.begin(), env.rgb.end());
+    }
+    CHECK(decoded[0] == decoded[1]);
     // stb_image's other formats are not read.
     const std::string bmp = dir + "/t.bmp";
     const std::vector<unsigned char> px(3 * 8 * 4, 100);

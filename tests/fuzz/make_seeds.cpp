@@ -120,6 +120,7 @@ void envImages() {
   put("env_image", "cross.png", "\x02" + png(16, 12));
   put("env_image", "vertical_cross.png", Bytes(1, '\0') + png(12, 16));
   put("env_image", "strip.jpg", Bytes(1, '\0') + jpg(24, 4));
+  put("env_image", "progressive.jpg", Bytes(1, '\0') + slurp(gTests + "/images/progressive.jpg"));  // tests/images/README.md
   put("env_image", "latlong.hdr", "\x01" + hdr(16, 8));
   for (const auto& e : fs::directory_iterator(fs::path(gTests) / "corpus")) {
     const std::string ext = e.path().extension().string();

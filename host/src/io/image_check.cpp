@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <utility>
 
 namespace prtbake::detail {
 namespace {
@@ -151,14 +152,23 @@ std::string pngProblem(const std::vector<unsigned char>& b) {
 // The marker segments as stbi__decode_jpeg_image meets them (fill bytes before SOI, and
 // garbage and fill bytes between segments, skipped; entropy-coded data after a start of
 // scan passed over to the next marker), with each DHT table's counts read as stb_image
-// reads them, past the segment's end while its length says more tables follow.
+// reads them, past the segment's end while its length says more tables follow. stb_image
+// 2.27 neither zeroes its decoder nor checks that a scan's tables were defined: a scan that
+// uses a Huffman or quantization table no segment before it defined decodes with whatever
+// the heap held there (an AC table's slow path then indexes its arrays with a stale
+// offset). Which tables a scan uses follows stb's decoder: a baseline scan its components'
+// DC and AC Huffman tables; a progressive scan the DC table in a first DC scan (Ss = 0,
+// Ah = 0), none in a DC refinement, the AC table in an AC scan; every scan its components'
+// quantization tables.
 std::string jpegProblem(const std::vector<unsigned char>& b) {
   size_t start = 0;  // stb takes any number of fill bytes (0xFF) before the SOI marker
   while (start < b.size() && b[start] == 0xFF) ++start;
   if (start == 0 || start == b.size() || b[start] != 0xD8) return "";  // not a JPEG
   auto at = [&](size_t i) { return i < b.size() ? size_t(b[i]) : 0; };  // stb reads 0 past the end
   double width = 0, height = 0, entropyBytes = 0;
-  bool inScan = false;
+  bool inScan = false, progressive = false;
+  bool huffman[2][4] = {}, quant[4] = {};  // defined so far: [DC, AC][id], [id]
+  std::vector<std::pair<size_t, size_t>> components;  // the frame's (id, quantization table)
   for (size_t pos = start + 1; pos + 1 < b.size();) {
     const size_t m = b[pos + 1];
     if (b[pos] != 0xFF || m == 0xFF || m == 0x00 || (m >= 0xD0 && m <= 0xD7)) {  // no segment starts here
@@ -168,16 +178,41 @@ std::string jpegProblem(const std::vector<unsigned char>& b) {
     }
     if (m == 0xD9) break;  // end of image
     const size_t length = at(pos + 2) << 8 | at(pos + 3);
-    if ((m == 0xC0 || m == 0xC1 || m == 0xC2) && width == 0)  // the frame: baseline, extended or progressive
+    if ((m == 0xC0 || m == 0xC1 || m == 0xC2) && width == 0) {  // the frame: baseline, extended or progressive
       height = double(at(pos + 5) << 8 | at(pos + 6)), width = double(at(pos + 7) << 8 | at(pos + 8));
+      progressive = m == 0xC2;
+      for (size_t k = 0, n = at(pos + 9); k < n; ++k) components.emplace_back(at(pos + 10 + 3 * k), at(pos + 12 + 3 * k));
+    }
+    if (m == 0xDB)
+      for (size_t t = pos + 4, left = length; left > 2;) {  // as the DHT tables below
+        const size_t bytes = at(t) >> 4 ? 129 : 65;
+        if (at(t) >> 4 < 2 && (at(t) & 15) < 4) quant[at(t) & 15] = true;
+        t += bytes;
+        left = left - 2 > bytes ? left - bytes : 2;
+      }
     if (m == 0xC4)
       for (size_t t = pos + 4, left = length; left > 2;) {  // 2: the length field itself
         size_t codes = 0;
         for (size_t i = 1; i <= 16; ++i) codes += at(t + i);
         if (codes > 256) return "a Huffman table of " + std::to_string(codes) + " codes (at most 256)";
+        if (at(t) >> 4 < 2 && (at(t) & 15) < 4) huffman[at(t) >> 4][at(t) & 15] = true;
         t += 17 + codes;
         left = left - 2 > 17 + codes ? left - 17 - codes : 2;
       }
+    if (m == 0xDA) {
+      const size_t n = at(pos + 4), ss = at(pos + 5 + 2 * n), ah = at(pos + 7 + 2 * n) >> 4;
+      for (size_t k = 0; k < n; ++k) {
+        const size_t id = at(pos + 5 + 2 * k), dc = at(pos + 6 + 2 * k) >> 4, ac = at(pos + 6 + 2 * k) & 15;
+        const auto c = std::find_if(components.begin(), components.end(), [&](const auto& f) { return f.first == id; });
+        if (c == components.end() || dc > 3 || ac > 3 || c->second > 3) continue;  // stb reports it
+        const std::string scan = "a scan (at byte " + std::to_string(pos) + ") uses ";
+        const std::string undefined = ", which no segment before it defines";
+        if (!quant[c->second]) return scan + "quantization table " + std::to_string(c->second) + undefined;
+        if ((!progressive || (ss == 0 && ah == 0)) && !huffman[0][dc])
+          return scan + "DC Huffman table " + std::to_string(dc) + undefined;
+        if ((!progressive || ss > 0) && !huffman[1][ac]) return scan + "AC Huffman table " + std::to_string(ac) + undefined;
+      }
+    }
     inScan = m == 0xDA;
     pos += 2 + length;
   }

@@ -10,8 +10,9 @@
 //   JPEG      at least 1 bit of entropy-coded data per 8x8 block of its largest component
 //             (every block's DC difference has a Huffman code of 1 bit or more).
 // They also refuse data on which stb_image 2.27 misbehaves (a Radiance run of length 0,
-// a JPEG Huffman table of more than 256 codes) and a Radiance header that stb_image and
-// the format would read differently. Each returns why the file cannot be decoded, or ""
+// a JPEG Huffman table of more than 256 codes, a JPEG scan that uses a Huffman or
+// quantization table that no segment before it defined) and a Radiance header that
+// stb_image and the format would read differently. Each returns why the file cannot be decoded, or ""
 // when stb_image can be trusted with it (including the headers stb_image itself refuses).
 #pragma once
 

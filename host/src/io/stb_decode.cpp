@@ -7,9 +7,12 @@ namespace {
 thread_local size_t blockLimit = 0;  // bytes; set by each load
 thread_local size_t refusedBlock = 0;
 
+// Zeroed: stb_image 2.27 reads parts of its blocks that a corrupt file never writes (its
+// JPEG decoder's state, a component's plane when a scan ends early at a missing restart
+// marker) and would otherwise decode whatever the heap held there; 2.28 zeroes its decoder.
 void* boundedMalloc(size_t n) {
   if (n > blockLimit) return refusedBlock = n, nullptr;
-  return std::malloc(n);
+  return std::calloc(1, n);
 }
 void* boundedRealloc(void* p, size_t n) {
   if (n > blockLimit) return refusedBlock = n, nullptr;
