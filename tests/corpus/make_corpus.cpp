@@ -183,6 +183,11 @@ void images() {
   if (sof == Bytes::npos) throw std::runtime_error("no SOF0 in the JPEG");
   hugeJpg[sof + 5] = hugeJpg[sof + 6] = hugeJpg[sof + 7] = hugeJpg[sof + 8] = char(0xff);
   put("huge_header.jpg", hugeJpg);
+  Bytes undefinedTable = jpg;  // the scan's first component names AC Huffman table 3, which no DHT defines
+  const size_t sos = undefinedTable.find("\xff\xda");
+  if (sos == Bytes::npos) throw std::runtime_error("no SOS in the JPEG");
+  undefinedTable[sos + 6] = char(0x03);  // SOS: FF DA len(2) count(1), then component id(1), tables(1)
+  put("undefined_table.jpg", undefinedTable);
 }
 
 // A one-triangle glTF: JSON + a 42-byte buffer (3 float3 positions + 3 uint16 indices).
