@@ -205,12 +205,13 @@ std::string jpegProblem(const std::vector<unsigned char>& b) {
         const size_t id = at(pos + 5 + 2 * k), dc = at(pos + 6 + 2 * k) >> 4, ac = at(pos + 6 + 2 * k) & 15;
         const auto c = std::find_if(components.begin(), components.end(), [&](const auto& f) { return f.first == id; });
         if (c == components.end() || dc > 3 || ac > 3 || c->second > 3) continue;  // stb reports it
-        const std::string scan = "a scan (at byte " + std::to_string(pos) + ") uses ";
-        const std::string undefined = ", which no segment before it defines";
-        if (!quant[c->second]) return scan + "quantization table " + std::to_string(c->second) + undefined;
-        if ((!progressive || (ss == 0 && ah == 0)) && !huffman[0][dc])
-          return scan + "DC Huffman table " + std::to_string(dc) + undefined;
-        if ((!progressive || ss > 0) && !huffman[1][ac]) return scan + "AC Huffman table " + std::to_string(ac) + undefined;
+        auto undefined = [&](const char* table, size_t i) {
+          return "a scan (at byte " + std::to_string(pos) + ") uses " + table + " " + std::to_string(i) +
+                 ", which no segment before it defines";
+        };
+        if (!quant[c->second]) return undefined("quantization table", c->second);
+        if ((!progressive || (ss == 0 && ah == 0)) && !huffman[0][dc]) return undefined("DC Huffman table", dc);
+        if ((!progressive || ss > 0) && !huffman[1][ac]) return undefined("AC Huffman table", ac);
       }
     }
     inScan = m == 0xDA;

@@ -12,8 +12,9 @@
 // They also refuse data on which stb_image 2.27 misbehaves (a Radiance run of length 0,
 // a JPEG Huffman table of more than 256 codes, a JPEG scan that uses a Huffman or
 // quantization table that no segment before it defined) and a Radiance header that
-// stb_image and the format would read differently. Each returns why the file cannot be decoded, or ""
-// when stb_image can be trusted with it (including the headers stb_image itself refuses).
+// stb_image and the format would read differently. Each returns why the file cannot be
+// decoded, or "" when stb_image can be trusted with it (including the headers stb_image
+// itself refuses).
 #pragma once
 
 #include <string>
