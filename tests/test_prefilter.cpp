@@ -218,7 +218,7 @@ TEST_CASE("The kernel matches its double-precision reference over the same cut",
     const PrefilterLevel& level = r.levels[1];
     const detail::BinTree tree = detail::buildBinTree(env, r.binFaceSize);
     const detail::LobeScale scale(lobe, level.alphaUsed, level.binTolerance);
-    const detail::TileTree tt = detail::makeTileTree(level.spec.size);
+    const detail::TileTree tt = detail::makeTileTree(level.spec.size, detail::leafSizeFor(lobe));
     const std::vector<int> leaves = {0, 3, 5};
     for (int face : {0, 2, 5}) {
       const detail::TileCuts cuts = detail::buildTileCuts(tree, scale, tt, face, leaves);

@@ -24,8 +24,8 @@ constexpr double kGltfLutTolerance = 1e-4;
 // The Khronos layout's diffuse cube: the irradiance varies slowly, 64² per face is ample.
 constexpr int kLambertianMaxSize = 64;
 // The sheen cube: Charlie lobes are broad (a ring about R), so 64² per face carries them, and
-// its r = 0 level (a thin ring at the horizon) is the cut's slowest case: 25 s at 64², over 5
-// minutes at 256² (venice_sunset, 2 cores).
+// its r = 0 level (a thin ring at the horizon) is the cut's slowest case: 4.4 s at 64², 27.5 s
+// at 256² (venice_sunset, 2 cores; docs/prefilter.md, "Charlie's ring").
 constexpr int kCharlieMaxSize = 64;
 
 nlohmann::json shJson(const EngineSh& sh) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <memory>
 
 #include "core/kernel_options.h"
@@ -27,6 +28,10 @@ constexpr size_t kEstimateTexelsPerFace = 1024;
 // tolerance (narrow lobes lower, r = 1 near 1), so most levels take one pass.
 constexpr double kFirstBinTolerance = 2.0;
 constexpr int kMaxPasses = 4;
+// A ring's (Charlie's) leaves are cut and computed in blocks of this many leaves a side (128 × 128
+// texels): its bins lie in each texel's own thin band, so a leaf's lists are long (7,750 bins per
+// texel at r = 0, 256², venice_sunset_1k.hdr) and the whole level's would not fit at once.
+constexpr int kRingChunkLeaves = 32;
 // Babylon's α_G = r² + 0.0005 (pbrHelperFunctions: the smallest α its shaders use).
 constexpr double kBabylonAlphaOffset = 0.0005;
 
@@ -203,15 +208,36 @@ class CutRunner {
   }
 
   // Computes the leaves leaves[face] of each face of the level into `out` (6n²·3 floats on the
-  // device), one face per launch after its cut; returns the texel-bin evaluations. Adds host
-  // (cut) and device seconds.
+  // device); returns the texel-bin evaluations. Adds host (cut) and device seconds.
+  // chunkSide 0: the six faces' cuts on the host's cores at once (each a read-only walk of the
+  // trees: at 256² the cut is most of a level's time), then one launch per face. Otherwise the
+  // leaves go in square blocks of chunkSide² leaves, each cut and computed before the next, so
+  // that only one block's lists are held (a ring's lists at 256² would take ~1 GB at once).
   size_t run(const detail::LobeScale& scale, cl_float4 lobe, const detail::TileTree& tt,
              const std::vector<std::vector<int>>& leaves, cl::Buffer& out, double* cutSeconds, double* kernelSeconds,
-             size_t* unresolved) {
-    const int wiPerLeaf = (tt.leaf * tt.leaf + vw_ - 1) / vw_;
+             int chunkSide = 0) {
     cl::Buffer offsets = rt_.upload(tt.offset);
-    // The six faces' cuts on the host's cores at once (each a read-only walk of the trees:
-    // at 256² the cut is most of a level's time), then one launch per face.
+    size_t summed = 0;
+    if (chunkSide > 0) {
+      for (int face = 0; face < 6; ++face) {
+        std::map<int, std::vector<int>> blocks;  // by block index, leaves in order
+        for (int leaf : leaves[size_t(face)]) {
+          const int ty = leaf / tt.side(0), tx = leaf % tt.side(0);
+          blocks[(ty / chunkSide) * tt.side(0) + tx / chunkSide].push_back(leaf);
+        }
+        for (const auto& [key, part] : blocks) {
+          const auto t0 = std::chrono::steady_clock::now();
+          const detail::TileCuts cuts = detail::buildTileCuts(tree_, scale, tt, face, part);
+          *cutSeconds += secondsSince(t0);
+          const auto t1 = std::chrono::steady_clock::now();
+          summed += launch(cuts, tt, face, part, offsets, lobe, out);
+          rt_.queue().finish();
+          keep_.clear();
+          *kernelSeconds += secondsSince(t1);
+        }
+      }
+      return summed;
+    }
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<detail::TileCuts> cuts(6);
     detail::parallelEach(6, 6, [&](size_t face) {
@@ -223,49 +249,54 @@ class CutRunner {
     });
     *cutSeconds += secondsSince(t0);
     const auto t1 = std::chrono::steady_clock::now();
-    size_t summed = 0;
-    std::vector<cl::Buffer> keep;  // each launch's lists, alive until the queue finishes
-    for (int face = 0; face < 6; ++face) {
-      const std::vector<int>& part = leaves[size_t(face)];
-      if (part.empty()) continue;
-      const detail::TileCuts& c = cuts[size_t(face)];
-      if (unresolved) *unresolved += c.unresolved;
-      for (int leaf : part)
-        for (int k = 0; k < tt.levels; ++k) {
-          const uint32_t id = tt.id(k, face, (leaf / tt.side(0)) >> k, (leaf % tt.side(0)) >> k);
-          for (uint32_t e = c.start[id]; e < c.start[id + 1]; ++e)
-            summed += (size_t(1) << (2 * ((c.bins[e] >> 23) & 15u))) * size_t(tt.leaf * tt.leaf);
-        }
-      cl::Buffer start = rt_.upload(c.start), bins = rt_.upload(c.bins), ids = rt_.upload(part);
-      keep.insert(keep.end(), {start, bins, ids});
-      int a = 0;
-      kernel_.setArg(a++, flux_);
-      kernel_.setArg(a++, dirL_);
-      kernel_.setArg(a++, dirG_);
-      kernel_.setArg(a++, start);
-      kernel_.setArg(a++, bins);
-      kernel_.setArg(a++, ids);
-      kernel_.setArg(a++, face);
-      kernel_.setArg(a++, tt.n);
-      kernel_.setArg(a++, tt.leaf);
-      kernel_.setArg(a++, wiPerLeaf);
-      kernel_.setArg(a++, tt.levels);
-      kernel_.setArg(a++, offsets);
-      kernel_.setArg(a++, tt.side(0));
-      kernel_.setArg(a++, binOffsets_);
-      kernel_.setArg(a++, tree_.faceSize0);
-      kernel_.setArg(a++, bases_);
-      kernel_.setArg(a++, lobe);
-      kernel_.setArg(a++, out);
-      rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(part.size() * size_t(wiPerLeaf)),
-                                       cl::NDRange(size_t(wiPerLeaf)));
-      if (progressWanted()) {  // a cancellation point per launch (the level's fraction is the caller's)
-        rt_.queue().finish();
-        reportProgress("prefilter", progress_);
-      }
-    }
+    for (int face = 0; face < 6; ++face)
+      if (!leaves[size_t(face)].empty())
+        summed += launch(cuts[size_t(face)], tt, face, leaves[size_t(face)], offsets, lobe, out);
     rt_.queue().finish();
+    keep_.clear();
     *kernelSeconds += secondsSince(t1);
+    return summed;
+  }
+
+  // Enqueues the leaves `part` of one face with their cut; returns the texel-bin evaluations.
+  // The lists' buffers stay alive (keep_) until the caller has finished the queue.
+  size_t launch(const detail::TileCuts& c, const detail::TileTree& tt, int face, const std::vector<int>& part,
+                cl::Buffer& offsets, cl_float4 lobe, cl::Buffer& out) {
+    const int wiPerLeaf = (tt.leaf * tt.leaf + vw_ - 1) / vw_;
+    size_t summed = 0;
+    for (int leaf : part)
+      for (int k = 0; k < tt.levels; ++k) {
+        const uint32_t id = tt.id(k, face, (leaf / tt.side(0)) >> k, (leaf % tt.side(0)) >> k);
+        for (uint32_t e = c.start[id]; e < c.start[id + 1]; ++e)
+          summed += (size_t(1) << (2 * ((c.bins[e] >> 23) & 15u))) * size_t(tt.leaf * tt.leaf);
+      }
+    cl::Buffer start = rt_.upload(c.start), bins = rt_.upload(c.bins), ids = rt_.upload(part);
+    keep_.insert(keep_.end(), {start, bins, ids});
+    int a = 0;
+    kernel_.setArg(a++, flux_);
+    kernel_.setArg(a++, dirL_);
+    kernel_.setArg(a++, dirG_);
+    kernel_.setArg(a++, start);
+    kernel_.setArg(a++, bins);
+    kernel_.setArg(a++, ids);
+    kernel_.setArg(a++, face);
+    kernel_.setArg(a++, tt.n);
+    kernel_.setArg(a++, tt.leaf);
+    kernel_.setArg(a++, wiPerLeaf);
+    kernel_.setArg(a++, tt.levels);
+    kernel_.setArg(a++, offsets);
+    kernel_.setArg(a++, tt.side(0));
+    kernel_.setArg(a++, binOffsets_);
+    kernel_.setArg(a++, tree_.faceSize0);
+    kernel_.setArg(a++, bases_);
+    kernel_.setArg(a++, lobe);
+    kernel_.setArg(a++, out);
+    rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(part.size() * size_t(wiPerLeaf)),
+                                     cl::NDRange(size_t(wiPerLeaf)));
+    if (progressWanted()) {  // a cancellation point per launch (the level's fraction is the caller's)
+      rt_.queue().finish();
+      reportProgress("prefilter", progress_);
+    }
     return summed;
   }
 
@@ -285,6 +316,7 @@ class CutRunner {
   int vw_ = 16;
   cl::Kernel kernel_;
   cl::Buffer flux_, dirL_, dirG_, bases_, binOffsets_;
+  std::vector<cl::Buffer> keep_;  // enqueued launches' lists
 };
 
 cl_float4 lobeParams(PrefilterLobe lobe, double alpha) {
@@ -364,14 +396,16 @@ void cutLevel(Runtime& rt, CutRunner& runner, const PrefilterOptions& options, P
   const size_t texels = size_t(6) * size_t(n) * size_t(n);
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
   cl::Buffer check;
-  const detail::TileTree tt = detail::makeTileTree(n);
+  const bool ring = options.lobe == PrefilterLobe::Charlie;
+  const detail::TileTree tt = detail::makeTileTree(n, detail::leafSizeFor(options.lobe));
+  const int chunk = ring ? kRingChunkLeaves : 0;
   const std::vector<int> faceLeaves = CutRunner::allLeaves(tt);
   const std::vector<std::vector<int>> all(6, faceLeaves);
   const std::vector<std::vector<int>> subset = estimateLeaves(tt, faceLeaves);
   double eps = kFirstBinTolerance * options.tolerance;
   for (int pass = 0;; ++pass) {
     const detail::LobeScale scale(options.lobe, level.alphaUsed, eps);
-    level.binsSummed = runner.run(scale, params, tt, all, out, &level.cutSeconds, &level.kernelSeconds, nullptr);
+    level.binsSummed = runner.run(scale, params, tt, all, out, &level.cutSeconds, &level.kernelSeconds, chunk);
     level.rgb.resize(texels * 3);
     rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, level.rgb.size() * sizeof(float), level.rgb.data());
     level.binTolerance = eps;
@@ -380,7 +414,7 @@ void cutLevel(Runtime& rt, CutRunner& runner, const PrefilterOptions& options, P
     const detail::LobeScale fine(options.lobe, level.alphaUsed, eps / 4);
     if (pass == 0) check = cl::Buffer(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
     double cutS = 0, kernelS = 0;
-    runner.run(fine, params, tt, subset, check, &cutS, &kernelS, nullptr);
+    runner.run(fine, params, tt, subset, check, &cutS, &kernelS, chunk);
     level.estimateSeconds += cutS + kernelS;
     std::vector<float> ref(texels * 3);
     rt.queue().enqueueReadBuffer(check, CL_TRUE, 0, ref.size() * sizeof(float), ref.data());

@@ -439,7 +439,8 @@ BinTree BinTreeBands::finish() {
 
 // --- the lobe's tables ---
 
-LobeScale::LobeScale(PrefilterLobe lobe, double alpha, double tolerance) : tolerance_(tolerance) {
+LobeScale::LobeScale(PrefilterLobe lobe, double alpha, double tolerance)
+    : tolerance_(tolerance), ring_(lobe == PrefilterLobe::Charlie) {
   // The θ grid: step α/64 up to 16α (the peak), then (π/2 − 16α)/kScaleGrid to π/2.
   const double split = std::min(kHalfPi, 16.0 * alpha);
   fineStep_ = split / kFineGrid;
@@ -578,6 +579,7 @@ struct Range {
 class Criterion {
  public:
   explicit Criterion(const LobeScale& s) : s_(s), slope_(s.horizonSlope()), floor1_(kFirstFloor * s.meanWeight()) {}
+  bool ring() const { return s_.ring(); }
 
   // Over the angles [lo, hi]: smallest g, largest H and largest H/g (one table query).
   Range range(double lo, double hi) const {
@@ -642,6 +644,14 @@ void lowerBounds(const BinTree& tree, const Criterion& crit, const TileGeom& t, 
   }
 }
 
+// A ring (Charlie) thinner than the tile: the tile's own bounds are ~0, every bin leaving some
+// texel's ring, and every bin would then have to meet the relative test (all of them down to
+// the finest level). Its bounds are instead kRingShare of the smallest of the true bounds at the
+// texels of a lattice (every S-th row and column of the face, and the last) that fall in or on
+// the tile. An estimate, not a bound: a texel between lattice points may see less light; the
+// level's error estimate measures the outcome (docs/prefilter.md).
+constexpr double kRingShare = 0.5;
+
 // The tile level the traversal starts from: the coarsest with at least 16 tiles per face
 // (4 × 4), or the leaves.
 int kPieceLevel(const TileTree& tt) {
@@ -661,12 +671,12 @@ void forEachBinEntry(const BinTree& tree, uint32_t entry, const std::function<vo
       f(tree.offset[size_t(lc)] + (size_t(face) * size_t(m) + size_t(r)) * size_t(m) + size_t(c));
 }
 
-TileTree makeTileTree(int n) {
+TileTree makeTileTree(int n, int leaf) {
   TileTree t;
   t.n = n;
   t.padded = 1;
   while (t.padded < n) t.padded *= 2;
-  t.leaf = std::min(n >= kLargeLeafFrom ? 2 * kLeafSize : kLeafSize, t.padded);
+  t.leaf = std::min(leaf > 0 ? leaf : n >= kLargeLeafFrom ? 2 * kLeafSize : kLeafSize, t.padded);
   t.levels = 1;
   while ((t.leaf << (t.levels - 1)) < t.padded) ++t.levels;
   t.offset.assign(size_t(t.levels) + 1, 0);
@@ -700,10 +710,54 @@ void tileLowerBounds(const BinTree& tree, const Criterion& crit, const TileTree&
         const uint32_t id = tt.id(k, face, ty, tx);
         if (geom[id].exists && wanted[id]) ids.push_back(id);
       }
-  detail::parallelEach(ids.size(), kCutThreads, [&](size_t i) {
-    thread_local std::vector<BinRef> stack;  // the walk's, kept from tile to tile
-    lowerBounds(tree, crit, geom[ids[i]], stack, &(*nLow)[ids[i]], &(*dLow)[ids[i]]);
-  });
+  if (!crit.ring()) {
+    detail::parallelEach(ids.size(), kCutThreads, [&](size_t i) {
+      thread_local std::vector<BinRef> stack;  // the walk's, kept from tile to tile
+      lowerBounds(tree, crit, geom[ids[i]], stack, &(*nLow)[ids[i]], &(*dLow)[ids[i]]);
+    });
+  } else {
+    // The lattice: rows and columns min(i·S, n − 1), S the tiles' size at kBound; each point that
+    // a wanted tile touches is walked once.
+    const int S = tt.leaf << kBound, count = (tt.n - 1 + S - 1) / S + 1;
+    auto at = [&](int i) { return std::min(i * S, tt.n - 1); };
+    auto span = [&](uint32_t id, int* i0, int* i1, int* j0, int* j1) {
+      int k = kBound;
+      while (id >= tt.offset[size_t(k) + 1]) ++k;
+      const int s = tt.side(k), size = tt.leaf << k, local = int(id - tt.offset[size_t(k)]) % (s * s);
+      *i0 = (local / s) * size / S, *j0 = (local % s) * size / S;
+      *i1 = std::min(count - 1, *i0 + size / S), *j1 = std::min(count - 1, *j0 + size / S);
+    };
+    std::vector<uint8_t> needed(size_t(count) * size_t(count), 0);
+    for (const uint32_t id : ids) {
+      int i0, i1, j0, j1;
+      span(id, &i0, &i1, &j0, &j1);
+      for (int i = i0; i <= i1; ++i)
+        for (int j = j0; j <= j1; ++j) needed[size_t(i * count + j)] = 1;
+    }
+    std::vector<size_t> points;
+    for (size_t i = 0; i < needed.size(); ++i)
+      if (needed[i]) points.push_back(i);
+    std::vector<double> pn(needed.size()), pd(needed.size());
+    detail::parallelEach(points.size(), kCutThreads, [&](size_t q) {
+      thread_local std::vector<BinRef> stack;
+      const size_t i = points[q];
+      TileGeom t{};
+      cubeTexelCenter(tt.n, face, at(int(i) / count), at(int(i) % count), t.d);
+      t.radius = kAngleSlack;
+      t.exists = true;
+      lowerBounds(tree, crit, t, stack, &pn[i], &pd[i]);
+    });
+    for (const uint32_t id : ids) {
+      int i0, i1, j0, j1;
+      span(id, &i0, &i1, &j0, &j1);
+      double nMin = 1e300, dMin = 1e300;
+      for (int i = i0; i <= i1; ++i)
+        for (int j = j0; j <= j1; ++j)
+          nMin = std::min(nMin, pn[size_t(i * count + j)]), dMin = std::min(dMin, pd[size_t(i * count + j)]);
+      (*nLow)[id] = kRingShare * nMin;
+      (*dLow)[id] = kRingShare * dMin;
+    }
+  }
   for (int k = kBound - 1; k >= 0; --k)
     for (int ty = 0; ty < tt.side(k); ++ty)
       for (int tx = 0; tx < tt.side(k); ++tx) {
@@ -751,9 +805,12 @@ class DualTraversal {
         out.unresolved += size_t(1) << (2 * p.b.level);
         continue;
       }
-      if (splitB && lo >= kBlockDistance * (g[3] + t.radius)) {
+      if (splitB && !crit_.ring() && lo >= kBlockDistance * (g[3] + t.radius)) {
         // Far from the tile for its size: take its descendants at the first depth that fits
-        // over the whole range (the finest when none does) as one block.
+        // over the whole range (the finest when none does) as one block. Not for a ring: far
+        // from the tile is where the ring lies, and a block at the depth its thin band needs
+        // would sum that depth over the whole bin (211k bins per texel at r = 0, 64², against
+        // 28k when they are opened).
         int depth = 1;
         while (depth < p.b.level && !crit_.fits(rg, g, nAllow, dAllow, depth)) ++depth;
         if (depth == p.b.level && !crit_.fits(rg, g, nAllow, dAllow, depth)) ++out.unresolved;
