@@ -3,7 +3,7 @@
 # double brute force on the four maps, and whole-command times and peak memory at 64² and 256²
 # (filament schedule, whose r = 0 level is the thinnest ring); writes bench/results/charlie.md.
 #   bash bench/bench_charlie.sh [BUILD] [BASELINE_CLI]
-# BASELINE_CLI: another build's prtbake (an earlier commit), timed at 64² in the same run.
+# BASELINE_CLI: another build's prtbake (an earlier commit), timed alternately in the same run.
 # Needs ../shared/data/envmaps/hdr (the four 1k HDR maps with suns).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -17,10 +17,12 @@ HDR=$ROOT/../shared/data/envmaps/hdr
 MAPS=("$HDR"/*.hdr "$HDR"/*.exr)
 SUN=$HDR/venice_sunset_1k.hdr
 timed() {  # label, command...: wall, CPU and peak of one run
-  local label=$1 t
+  local label=$1 tf
   shift
-  t=$( { /usr/bin/time -f '%e %U %S %M' "$@" >/dev/null 2>/dev/null; } 2>&1 | tail -1)
-  read -r wall user sys peak <<<"$t"
+  tf=$(mktemp)
+  /usr/bin/time -o "$tf" -f '%e %U %S %M' "$@" >/dev/null 2>&1
+  read -r wall user sys peak <"$tf"
+  rm -f "$tf"
   echo "| $label | $wall | $(awk -v a="$user" -v b="$sys" 'BEGIN { print a + b }') | $((peak / 1024)) |"
 }
 tmp=$(mktemp)
@@ -35,20 +37,21 @@ tmp=$(mktemp)
   echo
   "$BENCH" accuracy "${MAPS[@]}" --size 256 --schedule filament --lobe charlie --method cut
   echo
-  echo "## Whole commands (warm program caches), one run each"
+  echo "## Whole commands (warm program caches), three alternating runs each"
   echo
   echo "| command | wall [s] | CPU [s] | peak [MiB] |"
   echo "|---|---|---|---|"
   o=$(mktemp -d)
-  "$BUILD/prtbake" prefilter "$SUN" -o "$o/w.ktx2" --size 16 --lobe charlie -q  # warm the program cache
+  "$BUILD/prtbake" prefilter "$SUN" -o "$o/w.ktx2" --size 16 --lobe charlie -q  # warm the program caches
+  [ -z "$BASE" ] || "$BASE" prefilter "$SUN" -o "$o/w.ktx2" --size 16 --lobe charlie -q
   for size in 64 256; do
-    timed "prtbake prefilter $(basename "$SUN") --lobe charlie --schedule filament --size $size" \
-      "$BUILD/prtbake" prefilter "$SUN" -o "$o/c.ktx2" --size $size --schedule filament --lobe charlie -q
+    for run in 1 2 3; do
+      timed "prtbake prefilter $(basename "$SUN") --lobe charlie --schedule filament --size $size (#$run)" \
+        "$BUILD/prtbake" prefilter "$SUN" -o "$o/c.ktx2" --size $size --schedule filament --lobe charlie -q
+      [ -z "$BASE" ] || timed "baseline ($BASE), --size $size (#$run)" \
+        "$BASE" prefilter "$SUN" -o "$o/b.ktx2" --size $size --schedule filament --lobe charlie -q
+    done
   done
-  if [ -n "$BASE" ]; then
-    "$BASE" prefilter "$SUN" -o "$o/w.ktx2" --size 16 --lobe charlie -q
-    timed "baseline ($BASE), --size 64" "$BASE" prefilter "$SUN" -o "$o/b.ktx2" --size 64 --schedule filament --lobe charlie -q
-  fi
   rm -rf "$o"
 } | tee "$tmp"
 mv "$tmp" "$OUT"

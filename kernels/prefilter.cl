@@ -30,20 +30,54 @@
 #define V float16
 #define VI int16
 #define CONVERT_V convert_float16
+#define CONVERT_VI convert_int16
+#define AS_VI as_int16
+#define AS_V as_float16
 #define LANE_IDS ((int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
 #define VSTORE(v, p) vstore16((v), 0, (p))
 #elif VW == 8
 #define V float8
 #define VI int8
 #define CONVERT_V convert_float8
+#define CONVERT_VI convert_int8
+#define AS_VI as_int8
+#define AS_V as_float8
 #define LANE_IDS ((int8)(0, 1, 2, 3, 4, 5, 6, 7))
 #define VSTORE(v, p) vstore8((v), 0, (p))
 #else
 #define V float
 #define VI int
 #define CONVERT_V (float)
+#define CONVERT_VI (int)
+#define AS_VI as_int
+#define AS_V as_float
 #define LANE_IDS 0
 #define VSTORE(v, p) (*(p) = (v))
+#endif
+
+#if PF_LOBE == 1
+// log2 and exp2 in vector arithmetic: PoCL's CPU device calls a scalar library function per
+// lane for the built-ins, which took most of the Charlie kernel's time. log2 x = E + log2 m,
+// m ∈ [√½, √2), log2 m = (2/ln 2) atanh t, t = (m − 1)/(m + 1), |t| ≤ 0.172, by its series to
+// t⁹ (next term < 4e-9); exp2 y = 2^n · √2 · 2^f, f = y − n − ½ ∈ [−½, ½), by its Taylor series to
+// f⁷ (next term < 1e-8), 0 below 2⁻¹²⁶. Both within a few float ulps (tests/test_prefilter.cpp).
+inline V pf_log2(V x) {
+  const VI bits = AS_VI(x);
+  V m = AS_V((bits & 0x007fffff) | 0x3f800000);
+  const VI big = m > 1.41421356f;
+  m = select(m, 0.5f * m, big);
+  const VI ex = select(((bits >> 23) & 255) - 127, ((bits >> 23) & 255) - 126, big);
+  const V t = (m - 1.0f) / (m + 1.0f), t2 = t * t;
+  const V s = 1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * (0.14285714f + t2 * 0.11111111f)));
+  return CONVERT_V(ex) + 2.88539008f * t * s;
+}
+inline V pf_exp2(V y) {
+  const V yc = fmax(y, -126.0f), nf = floor(yc), f = yc - nf - 0.5f;
+  const V p = 1.0f + f * (0.69314718f + f * (0.24022651f + f * (0.05550411f + f * (0.00961813f +
+              f * (0.00133336f + f * (1.5403530e-4f + f * 1.5252734e-5f))))));
+  const V scale = AS_V((CONVERT_VI(nf) + 127) << 23);
+  return select(1.41421356f * p * scale, (V)(0.0f), y < -126.0f);
+}
 #endif
 
 // The lobe k as a function of e = 1 − μ, scaled to a peak of 1 (prefilterLobeWeight):
@@ -58,8 +92,7 @@ inline V pf_lobe(V e, float4 lobe) {
   V w = lobe.x / q;
   return fmax(mu, 0.0f) * w * w;
 #elif PF_LOBE == 1
-  // One logarithm: log2 is most of the kernel's time on PoCL's CPU device (a library call).
-  return fmax(mu, 0.0f) * exp2(lobe.y * log2(fmax(0.5f * e, 1e-30f)) - lobe.z);
+  return fmax(mu, 0.0f) * pf_exp2(lobe.y * pf_log2(fmax(0.5f * e, 1e-30f)) - lobe.z);
 #else
   return fmax(mu, 0.0f);
 #endif

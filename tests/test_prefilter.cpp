@@ -205,20 +205,25 @@ TEST_CASE("White furnace: a constant environment at every texel of every level, 
 
 TEST_CASE("The kernel matches its double-precision reference over the same cut", "[prefilter][kernel]") {
   // Same bins, same cut, same formula: the float32 kernel (directions from rsqrt, lobe from
-  // e = |R − c|²/2, float sums over a few thousand bins) against double. Measured worst
-  // 1.4e-5 relative (GGX), 8e-6 (Charlie), 1.8e-6 (lambertian); the bound leaves a factor 3.5
-  // for other devices' rounding.
-  constexpr double kKernelTol = 5e-5;
+  // e = |R − c|²/2, Charlie's power from the kernel's own log2 and exp2, float sums over a few
+  // thousand bins) against double, at r = 0.3 and, for Charlie, at r = 0 too (α = 0.0079: the
+  // power 1/(2α) = 63 multiplies the float rounding of e). Measured worst 1.4e-5 relative (GGX),
+  // 8e-6 (Charlie r = 0.3), 1.8e-6 (lambertian); the bound leaves a factor 3.5 for other devices'
+  // rounding. Charlie at r = 0: 7.8e-5 with OpenCL's built-in log2 and exp2 and with the kernel's
+  // own alike, bounded at 3 times that. The kernel's log2 with its exponent off by one where it
+  // halves the mantissa fails (worst 2.5 at r = 0.3).
+  constexpr double kKernelTol = 5e-5, kRingKernelTol = 2.5e-4;
   const EnvMap env = makeCube(48, skyWithSun);
-  for (auto lobe : {PrefilterLobe::Ggx, PrefilterLobe::Charlie, PrefilterLobe::Lambertian}) {
+  for (auto [lobe, index] : {std::pair{PrefilterLobe::Ggx, 1}, {PrefilterLobe::Charlie, 1}, {PrefilterLobe::Charlie, 0},
+                             {PrefilterLobe::Lambertian, 1}}) {
     PrefilterOptions o = rough(32, {0.0, 0.3, 0.7});
     o.lobe = lobe;
     o.errorEstimate = false;
     const PrefilterResult r = prefilterEnvironment(test::runtime(), env, o);
-    const PrefilterLevel& level = r.levels[1];
+    const PrefilterLevel& level = r.levels[size_t(index)];
     const detail::BinTree tree = detail::buildBinTree(env, r.binFaceSize);
     const detail::LobeScale scale(lobe, level.alphaUsed, level.binTolerance);
-    const detail::TileTree tt = detail::makeTileTree(level.spec.size, detail::leafSizeFor(lobe));
+    const detail::TileTree tt = detail::makeTileTree(level.spec.size);
     const std::vector<int> leaves = {0, 3, 5};
     for (int face : {0, 2, 5}) {
       const detail::TileCuts cuts = detail::buildTileCuts(tree, scale, tt, face, leaves);
@@ -231,9 +236,9 @@ TEST_CASE("The kernel matches its double-precision reference over the same cut",
           for (int col = tx * tt.leaf; col < std::min(tt.n, (tx + 1) * tt.leaf); ++col, ++i)
             for (int c = 0; c < 3; ++c) worst = std::max(worst, relErr(texel(level, face, row, col)[c], ref[3 * i + size_t(c)]));
       }
-      INFO(toString(lobe) << " face " << face << ": worst " << worst);
+      INFO(toString(lobe) << " alpha " << level.alphaUsed << " face " << face << ": worst " << worst);
       REQUIRE(i * 3 == ref.size());
-      REQUIRE(worst <= kKernelTol);
+      REQUIRE(worst <= (index == 0 ? kRingKernelTol : kKernelTol));
     }
   }
 }

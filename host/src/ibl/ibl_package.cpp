@@ -23,10 +23,6 @@ namespace {
 constexpr double kGltfLutTolerance = 1e-4;
 // The Khronos layout's diffuse cube: the irradiance varies slowly, 64² per face is ample.
 constexpr int kLambertianMaxSize = 64;
-// The sheen cube: Charlie lobes are broad (a ring about R), so 64² per face carries them, and
-// its r = 0 level (a thin ring at the horizon) is the cut's slowest case: 4.4 s at 64², 27.5 s
-// at 256² (venice_sunset, 2 cores; docs/prefilter.md, "Charlie's ring").
-constexpr int kCharlieMaxSize = 64;
 
 nlohmann::json shJson(const EngineSh& sh) {
   nlohmann::json j = nlohmann::json::array();
@@ -184,7 +180,7 @@ void gltfTarget(Package& pkg, Runtime& rt, const EnvMap& env, const IblPackageOp
   };
   for (const Cube& c : {Cube{PrefilterLobe::Lambertian, "gltf/lambertian/diffuse.ktx2", std::min(o.size, kLambertianMaxSize)},
                         Cube{PrefilterLobe::Ggx, "gltf/ggx/specular.ktx2", o.size},
-                        Cube{PrefilterLobe::Charlie, "gltf/charlie/sheen.ktx2", std::min(o.size, kCharlieMaxSize)}}) {
+                        Cube{PrefilterLobe::Charlie, "gltf/charlie/sheen.ktx2", o.size}}) {
     const PrefilterResult r = prefilter(rt, env, c.lobe, PrefilterSchedule::Linear, c.size,
                                         c.lobe == PrefilterLobe::Lambertian ? 1 : 0, o.tolerance);
     Ktx2Stats stats;

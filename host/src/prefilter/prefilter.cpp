@@ -28,9 +28,9 @@ constexpr size_t kEstimateTexelsPerFace = 1024;
 // tolerance (narrow lobes lower, r = 1 near 1), so most levels take one pass.
 constexpr double kFirstBinTolerance = 2.0;
 constexpr int kMaxPasses = 4;
-// A ring's (Charlie's) leaves are cut and computed in blocks of this many leaves a side (128 × 128
-// texels): its bins lie in each texel's own thin band, so a leaf's lists are long (7,750 bins per
-// texel at r = 0, 256², venice_sunset_1k.hdr) and the whole level's would not fit at once.
+// A ring's (Charlie's) leaves are cut and computed in blocks of this many leaves a side (256 or
+// 512 texels): its bins lie in each texel's own thin band, so a leaf's lists are long (11,900
+// bins per texel at r = 0, 256², venice_sunset_1k.hdr) and a large level's would not fit at once.
 constexpr int kRingChunkLeaves = 32;
 // Babylon's α_G = r² + 0.0005 (pbrHelperFunctions: the smallest α its shaders use).
 constexpr double kBabylonAlphaOffset = 0.0005;
@@ -397,7 +397,7 @@ void cutLevel(Runtime& rt, CutRunner& runner, const PrefilterOptions& options, P
   cl::Buffer out(rt.context(), CL_MEM_WRITE_ONLY, texels * 3 * sizeof(float));
   cl::Buffer check;
   const bool ring = options.lobe == PrefilterLobe::Charlie;
-  const detail::TileTree tt = detail::makeTileTree(n, detail::leafSizeFor(options.lobe));
+  const detail::TileTree tt = detail::makeTileTree(n);
   const int chunk = ring ? kRingChunkLeaves : 0;
   const std::vector<int> faceLeaves = CutRunner::allLeaves(tt);
   const std::vector<std::vector<int>> all(6, faceLeaves);

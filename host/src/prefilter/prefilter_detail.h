@@ -113,11 +113,6 @@ class LobeScale {
 // than they save at 128² (0.8 → 0.9 s). Tile (k, face, ty, tx), k = 0 for the leaves,
 // has id offset[k] + (face·S_k + ty)·S_k + tx with S_k = P/(L·2^k) tiles per side.
 constexpr int kLeafSize = 8;
-// Charlie's ring is a band about 1/(1 + 1/(2α)) wide in R·l, thinner than an 8 × 8 tile's spread of
-// rings at the sizes that matter: each texel's bins lie in its own ring, so smaller tiles share
-// less and sum far fewer. Measured (venice_sunset_1k.hdr, 6 × 256², filament): 4 × 4 leaves sum
-// 7,746 bins per texel at r = 0, 8 × 8 (16 × 16) leaves 10,631; the whole command 55 s against 63 s.
-constexpr int kRingLeafSize = 4;
 constexpr int kLargeLeafFrom = 256;
 struct TileTree {
   int n = 0, padded = 0, leaf = 0, levels = 0;
@@ -127,9 +122,7 @@ struct TileTree {
     return offset[size_t(k)] + uint32_t((face * side(k) + ty) * side(k) + tx);
   }
 };
-TileTree makeTileTree(int n, int leaf = 0);  // leaf: 0 for the sizes above
-// The leaf size a lobe's levels use (makeTileTree's leaf).
-inline int leafSizeFor(PrefilterLobe lobe) { return lobe == PrefilterLobe::Charlie ? kRingLeafSize : 0; }
+TileTree makeTileTree(int n);
 
 // The cut: for every tile, the bins whose whole contribution it takes for all its texels,
 // start[id]..start[id+1] in `bins` (entries as forEachBinEntry reads them); a texel sums the
