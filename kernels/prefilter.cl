@@ -60,7 +60,9 @@
 // lane for the built-ins, which took most of the Charlie kernel's time. log2 x = E + log2 m,
 // m ∈ [√½, √2), log2 m = (2/ln 2) atanh t, t = (m − 1)/(m + 1), |t| ≤ 0.172, by its series to
 // t⁹ (next term < 4e-9); exp2 y = 2^n · √2 · 2^f, f = y − n − ½ ∈ [−½, ½), by its Taylor series to
-// f⁷ (next term < 1e-8), 0 below 2⁻¹²⁶. Both within a few float ulps (tests/test_prefilter.cpp).
+// f⁷ (next term < 1e-8), 0 below 2⁻¹²⁶, 2¹²⁷·√2·2^f above (the weight's y exceeds 127 only
+// below the horizon, μ < −½ at α < 0.004, where the weight is μ⁺ · 2^y = 0: an infinity there would
+// make it NaN). Both within a few float ulps (tests/test_prefilter.cpp).
 inline V pf_log2(V x) {
   const VI bits = AS_VI(x);
   V m = AS_V((bits & 0x007fffff) | 0x3f800000);
@@ -72,7 +74,7 @@ inline V pf_log2(V x) {
   return CONVERT_V(ex) + 2.88539008f * t * s;
 }
 inline V pf_exp2(V y) {
-  const V yc = fmax(y, -126.0f), nf = floor(yc), f = yc - nf - 0.5f;
+  const V yc = clamp(y, -126.0f, 127.0f), nf = floor(yc), f = yc - nf - 0.5f;
   const V p = 1.0f + f * (0.69314718f + f * (0.24022651f + f * (0.05550411f + f * (0.00961813f +
               f * (0.00133336f + f * (1.5403530e-4f + f * 1.5252734e-5f))))));
   const V scale = AS_V((CONVERT_VI(nf) + 127) << 23);
