@@ -23,6 +23,11 @@ namespace {
 constexpr double kGltfLutTolerance = 1e-4;
 // The Khronos layout's diffuse cube: the irradiance varies slowly, 64² per face is ample.
 constexpr int kLambertianMaxSize = 64;
+// The sheen cube: the GGX cube's size up to 512². Its sharpest level (r = 0, α = 0.007921) is a
+// ring whose weight rises from R's horizon to its peak over 0.016 rad, 4 texels at 512²: larger
+// faces add no detail and cost the ring's sum per texel (venice_sunset_1k, 2 cores, filament:
+// 256² 8.3 s, 512² 21.7 s, 1024² 134 s; docs/prefilter.md, "Charlie's ring").
+constexpr int kCharlieMaxSize = 512;
 
 nlohmann::json shJson(const EngineSh& sh) {
   nlohmann::json j = nlohmann::json::array();
@@ -180,7 +185,7 @@ void gltfTarget(Package& pkg, Runtime& rt, const EnvMap& env, const IblPackageOp
   };
   for (const Cube& c : {Cube{PrefilterLobe::Lambertian, "gltf/lambertian/diffuse.ktx2", std::min(o.size, kLambertianMaxSize)},
                         Cube{PrefilterLobe::Ggx, "gltf/ggx/specular.ktx2", o.size},
-                        Cube{PrefilterLobe::Charlie, "gltf/charlie/sheen.ktx2", o.size}}) {
+                        Cube{PrefilterLobe::Charlie, "gltf/charlie/sheen.ktx2", std::min(o.size, kCharlieMaxSize)}}) {
     const PrefilterResult r = prefilter(rt, env, c.lobe, PrefilterSchedule::Linear, c.size,
                                         c.lobe == PrefilterLobe::Lambertian ? 1 : 0, o.tolerance);
     Ktx2Stats stats;
