@@ -796,14 +796,10 @@ class DualTraversal {
       const uint32_t tid = tt_.id(p.k, face_, p.ty, p.tx);
       const TileGeom& t = geom_[tid];
       const auto& g = tree_.geom[p.b.node(tree_)];
-      if (g[5] <= 0.0f) continue;  // empty: no texel centre falls in it
-      const double delta = angleBetween(t.d, g);
-      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
-      if (lo >= kHalfPi) continue;  // beyond every texel's horizon: weight 0
+      const Judgement j = judge(g, t, tid);
+      if (j.verdict == Verdict::Empty || j.verdict == Verdict::Beyond) continue;
       const bool splitB = p.b.level > 0, splitT = p.k > 0;
-      const Range rg = crit_.range(lo, hi);
-      const double nAllow = share_ * nLow_[tid], dAllow = share_ * dLow_[tid];
-      const bool fits = crit_.fits(rg, g, nAllow, dAllow);
+      const bool fits = j.verdict == Verdict::Fits;
       if (fits || (!splitB && !splitT)) {
         if (!fits) ++out.unresolved;
         out.pairs.push_back({tid, blockEntry(p.b, 0)});
@@ -823,15 +819,16 @@ class DualTraversal {
         out.unresolved += size_t(1) << (2 * p.b.level);
         continue;
       }
-      if (splitB && !crit_.ring() && lo >= kBlockDistance * (g[3] + t.radius)) {
+      if (splitB && !crit_.ring() && j.rg.lo >= kBlockDistance * (g[3] + t.radius)) {
         // Far from the tile for its size: take its descendants at the first depth that fits
         // over the whole range (the finest when none does) as one block. Not for a ring: far
         // from the tile is where the ring lies, and a block at the depth its thin band needs
         // would sum that depth over the whole bin (211k bins per texel at r = 0, 64², against
         // 28k when they are opened).
+        const double nAllow = share_ * nLow_[tid], dAllow = share_ * dLow_[tid];
         int depth = 1;
-        while (depth < p.b.level && !crit_.fits(rg, g, nAllow, dAllow, depth)) ++depth;
-        if (depth == p.b.level && !crit_.fits(rg, g, nAllow, dAllow, depth)) ++out.unresolved;
+        while (depth < p.b.level && !crit_.fits(j.rg, g, nAllow, dAllow, depth)) ++depth;
+        if (depth == p.b.level && !crit_.fits(j.rg, g, nAllow, dAllow, depth)) ++out.unresolved;
         out.pairs.push_back({tid, blockEntry(p.b, depth)});
         continue;
       }
@@ -849,6 +846,23 @@ class DualTraversal {
   }
 
  private:
+  // A (tile, bin) pair: the bin empty (no texel centre falls in it), beyond every texel's
+  // horizon (weight 0), flat enough over the tile to be taken whole (within ζ of the tile's
+  // lower bounds), or to be opened; rg: the range of angles between them.
+  enum class Verdict { Empty, Beyond, Fits, Opens };
+  struct Judgement {
+    Verdict verdict;
+    Range rg;
+  };
+  Judgement judge(const std::array<float, 8>& g, const TileGeom& t, uint32_t tid) const {
+    if (g[5] <= 0.0f) return {Verdict::Empty, {}};
+    const double delta = angleBetween(t.d, g);
+    const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
+    if (lo >= kHalfPi) return {Verdict::Beyond, {}};
+    const Range rg = crit_.range(lo, hi);
+    return {crit_.fits(rg, g, share_ * nLow_[tid], share_ * dLow_[tid]) ? Verdict::Fits : Verdict::Opens, rg};
+  }
+
   // What the traversal makes of a bin's subtree at a leaf: nothing (an empty bin: no texel
   // centre in it), nothing (beyond the horizon), its pairs (listed), or every descendant opened
   // down to the finest bins (listed by the caller, whole or merged into its parent's block).
@@ -877,14 +891,11 @@ class DualTraversal {
   }
   // One bin of such a subtree: skipped, taken whole (listed), or resolved further.
   Subtree classify(const BinRef& b, const TileGeom& t, uint32_t tid, CutPairs& out) const {
-    const auto& g = tree_.geom[b.node(tree_)];
-    if (g[5] <= 0.0f) return Subtree::Empty;
-    const double delta = angleBetween(t.d, g);
-    const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
-    if (lo >= kHalfPi) return Subtree::Beyond;
-    if (crit_.fits(crit_.range(lo, hi), g, share_ * nLow_[tid], share_ * dLow_[tid])) {
-      out.pairs.push_back({tid, blockEntry(b, 0)});
-      return Subtree::Listed;
+    switch (judge(tree_.geom[b.node(tree_)], t, tid).verdict) {
+      case Verdict::Empty: return Subtree::Empty;
+      case Verdict::Beyond: return Subtree::Beyond;
+      case Verdict::Fits: out.pairs.push_back({tid, blockEntry(b, 0)}); return Subtree::Listed;
+      case Verdict::Opens: break;
     }
     return resolve(b, t, tid, out);
   }
@@ -898,12 +909,9 @@ class DualTraversal {
       const BinRef b = todo.back();
       todo.pop_back();
       if (b.level == 0) continue;
-      const auto& g = tree_.geom[b.node(tree_)];
-      if (g[5] <= 0.0f) continue;
-      const double delta = angleBetween(t.d, g);
-      const double lo = std::max(0.0, delta - t.radius - g[3]), hi = delta + t.radius + g[3];
-      if (lo >= kHalfPi || crit_.fits(crit_.range(lo, hi), g, share_ * nLow_[tid], share_ * dLow_[tid]))
-        return false;
+      const Verdict v = judge(tree_.geom[b.node(tree_)], t, tid).verdict;
+      if (v == Verdict::Empty) continue;
+      if (v != Verdict::Opens) return false;
       for (int k = 0; k < 4; ++k) todo.push_back({b.level - 1, b.face, 2 * b.row + (k >> 1), 2 * b.col + (k & 1)});
     }
     return true;
