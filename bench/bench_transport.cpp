@@ -2,7 +2,8 @@
 // scene, 1024 samples) and on a procedural ~200k-triangle bumpy sphere, SH orders 3 and 5.
 //
 // usage: bench_transport [--repeats N] [--samples-large N] [--device SPEC] [--packet-width W] [--knot]
-// --packet-width: TransportOptions::packetWidth (16, 8, or 0 for one ray per work-item);
+// --packet-width: TransportOptions::packetWidth (16, 8, 0 for one ray per work-item, or the
+// default -1: 16 on a CPU device, 0 on a GPU);
 // --knot: the large mesh is the torus knot of bench_embree.sh (204,800 triangles).
 // Prints one line per case: wall seconds of computeTransport (median of N runs; the
 // programs are built beforehand on a tiny mesh), kernel seconds, rays, rays/s, and rays
@@ -79,7 +80,7 @@ int main(int argc, char** argv) {
   }
   Runtime rt(device);
   std::printf("device: %s\n", rt.deviceLabel().c_str());
-  std::printf("shadowed transport, packet width %d; median of %d runs (mary.obj), %d (large mesh)\n", packetWidth, repeats,
+  std::printf("shadowed transport, packet width %d (-1: 16 on a CPU device, 0 on a GPU); median of %d runs (mary.obj), %d (large mesh)\n", packetWidth, repeats,
               std::max(1, repeats / 3));
   const std::string maryPath = std::string(PRTBAKE_BENCH_DATA_DIR) + "/meshes/obj/mary.obj";
   try {

@@ -9,9 +9,11 @@
 
 #include "bvh_types.h"
 #include "prtbake/bvh.h"
+#include "prtbake/error.h"
 #include "prtbake/mesh.h"
 #include "prtbake/transport.h"
 #include "test_common.h"
+#include "transport/transport_setup.h"
 
 using namespace prtbake;
 
@@ -241,6 +243,22 @@ TEST_CASE("Packet kernels (16, 8 lanes) agree with the scalar kernel", "[bvh][ke
     worst = std::max(worst, std::abs(double(packetBounce.coeffs[i]) - scalarBounce.coeffs[i]));
   INFO("bounces: max |packet - scalar| = " << worst);
   CHECK(worst < kSumOrderTol);
+}
+
+TEST_CASE("The default packet width follows the device", "[bvh]") {
+  // Packets where a device's vector units run their lanes side by side (PoCL's CPU device),
+  // one ray per work-item elsewhere; a width asked for is kept. (That the default takes the
+  // packets on this CPU device is seen below: only the packet kernels keep the blocked rays.)
+  DeviceInfo cpu, gpu, other;
+  cpu.type = "cpu", gpu.type = "gpu", other.type = "other";
+  CHECK(detail::packetWidthFor(cpu, TransportOptions{}.packetWidth) == 16);
+  CHECK(detail::packetWidthFor(gpu, TransportOptions{}.packetWidth) == 0);
+  CHECK(detail::packetWidthFor(other, -1) == 0);
+  CHECK(detail::packetWidthFor(gpu, 16) == 16);
+  CHECK(detail::packetWidthFor(cpu, 0) == 0);
+  TransportOptions o;
+  o.packetWidth = 4;
+  CHECK_THROWS_AS(computeTransport(test::runtime(), occludingScene(), o), UsageError);
 }
 
 TEST_CASE("Bounces trace only the rays that the direct term found blocked, once", "[bvh][kernel]") {

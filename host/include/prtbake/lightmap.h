@@ -89,7 +89,7 @@ struct LightmapOptions {
   int dilation = 8;            // rings of texels filled around the charts (0: none)
   bool unocclude = true;       // move samples out of closed geometry
   bool stitchSeams = true;     // least-squares agreement of the two sides of every UV seam
-  int packetWidth = 16;        // the transport kernels' packet width (0: one ray at a time)
+  int packetWidth = -1;        // the transport kernels' packet width (0: one ray at a time; −1: by the device)
   // A shard of a split bake: {first, count} of the samples in lightmapSamples' order. Only those
   // are baked (each with the rays it takes in the whole bake), the other texels stay Empty and
   // nothing is repaired: repairLightmap runs once on the assembled map. Not with tolerance.

@@ -80,8 +80,8 @@ struct ProbeOptions {
   size_t firstProbe = 0;
   std::optional<size_t> probeCount;
   // Rays per packet: 16 (a probe's rays 16 at a time over the wide BVH) or 0 (one at a time;
-  // the results agree up to float summation order).
-  int packetWidth = 16;
+  // the results agree up to float summation order); −1: by the device, as for the transport.
+  int packetWidth = -1;
 };
 
 struct ProbeGridResult {

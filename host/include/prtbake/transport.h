@@ -55,8 +55,9 @@ struct TransportOptions {
   std::optional<std::array<float, 3>> albedoOverride;
   // Rays per packet of the direct-term kernel: 16 or 8 (vector types, one vertex's
   // rays share an origin), or 0 for the scalar one-ray-at-a-time kernel. The results
-  // agree up to float summation order.
-  int packetWidth = 16;
+  // agree up to float summation order. −1: by the device (detail::packetWidthFor: 16 on a
+  // CPU, 0 on a GPU).
+  int packetWidth = -1;
   // Interreflected only: also return each bounce's T^(k) (TransportResult::bounceCoeffs).
   bool keepBounces = false;
   // computeTransport only: the vertex range [firstVertex, firstVertex + vertexCount)

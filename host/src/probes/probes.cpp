@@ -76,6 +76,8 @@ void checkOptions(const ProbeOptions& o) {
   if (o.tolerance > 0 && (o.toleranceMaxSamples < 64 || o.toleranceMaxSamples > 65536))
     throw UsageError("--max-samples", "expected 64..65536");
   if (o.bounces < 0 || o.bounces > 16) throw UsageError("--bounces", "expected 0..16");
+  if (o.packetWidth != -1 && o.packetWidth != 0 && o.packetWidth != 16)
+    throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0 or 16, or -1: by the device)");
   if (o.transportSamples < 1 || o.transportSamples > (1 << 20)) throw UsageError("--transport-samples", "expected 1..1048576");
   if (!(o.backfaceLimit > 0 && o.backfaceLimit <= 1)) throw UsageError("--backface-limit", "expected a fraction in (0, 1]");
   if (!(o.relocateFraction >= 0 && o.relocateFraction <= 1)) throw UsageError("--relocate", "expected a fraction in [0, 1]");
@@ -398,7 +400,7 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
     return quadrature(*rings, *segments);
   };
 
-  ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, o.packetWidth);
+  ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, detail::packetWidthFor(rt.info(), o.packetWidth));
   // A probe inside geometry (back faces over the limit) is relocated or filled: its trace may stop.
   const float stop = float(o.backfaceLimit * 4 * kPi);
   int samples = o.samples;

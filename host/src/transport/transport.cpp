@@ -538,9 +538,11 @@ void bake(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail
 
 }  // namespace
 
-TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
+TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& options) {
   const auto tStart = Clock::now();
-  detail::checkTransportOptions(o);
+  detail::checkTransportOptions(options);
+  TransportOptions o = options;
+  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   TransportResult r;
   r.order = o.order;
@@ -563,9 +565,11 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
 }
 
 TransportResult computeTransportAtPoints(Runtime& rt, const Mesh& mesh, const SurfacePoints& pts,
-                                         const TransportOptions& o) {
+                                         const TransportOptions& options) {
   const auto tStart = Clock::now();
-  detail::checkTransportOptions(o);
+  detail::checkTransportOptions(options);
+  TransportOptions o = options;
+  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   if (pts.positions.size() % 3 || pts.normals.size() != pts.positions.size() ||
       pts.faceNormals.size() != pts.positions.size())
@@ -610,8 +614,10 @@ TransportResult computeTransportAtPoints(Runtime& rt, const Mesh& mesh, const Su
   return r;
 }
 
-std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& o) {
-  detail::checkTransportOptions(o);
+std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& options) {
+  detail::checkTransportOptions(options);
+  TransportOptions o = options;
+  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
   const Bvh bvh = buildBvh(mesh);

@@ -170,6 +170,10 @@ std::vector<float> packetDirections(const std::vector<float>& dirs, int& paddedC
   return soa;
 }
 
+int packetWidthFor(const DeviceInfo& device, int requested) {
+  return requested >= 0 ? requested : device.type == "cpu" ? 16 : 0;
+}
+
 void checkTransportOptions(const TransportOptions& o) {
   if (o.order < 1 || o.order > kMaxTransportOrder)
     throw UsageError("--order", std::to_string(o.order) + " is out of range [1, " + std::to_string(kMaxTransportOrder) + "]");
@@ -177,8 +181,8 @@ void checkTransportOptions(const TransportOptions& o) {
     throw UsageError("--samples", std::to_string(o.samples) + " is out of range [1, 16777216]");
   if (o.mode == TransportMode::Interreflected && (o.bounces < 1 || o.bounces > 64))
     throw UsageError("--bounces", std::to_string(o.bounces) + " is out of range [1, 64]");
-  if (o.packetWidth != 0 && o.packetWidth != 8 && o.packetWidth != 16)
-    throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0, 8 or 16)");
+  if (o.packetWidth != -1 && o.packetWidth != 0 && o.packetWidth != 8 && o.packetWidth != 16)
+    throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0, 8 or 16, or -1: by the device)");
   if (!(o.bounceTolerance >= 0) || !std::isfinite(o.bounceTolerance))
     throw UsageError("--bounce-tolerance", "must be a finite number ≥ 0");
   if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
