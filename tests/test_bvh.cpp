@@ -247,7 +247,7 @@ TEST_CASE("Packet kernels (16, 8 lanes) agree with the scalar kernel", "[bvh][ke
 
 TEST_CASE("The default packet width follows the device", "[bvh]") {
   // Packets where a device's vector units run their lanes side by side (PoCL's CPU device),
-  // one ray per work-item elsewhere; a width asked for is kept. (That the default takes the
+  // the scalar kernels elsewhere; a width asked for is kept. (That the default takes the
   // packets on this CPU device is seen below: only the packet kernels keep the blocked rays.)
   DeviceInfo cpu, gpu, other;
   cpu.type = "cpu", gpu.type = "gpu", other.type = "other";

@@ -50,10 +50,10 @@ RaySetup makePointRaySetup(const Mesh& mesh, const SurfacePoints& points, const 
 // The packet width that the options' `requested` width (TransportOptions::packetWidth,
 // ProbeOptions::packetWidth) comes to on `device`: a width ≥ 0 as it is; −1 (the
 // default) 16 on a CPU device, whose vector units run a packet's lanes side by side, and 0
-// (one ray per work-item) on any other: a GPU's compiler runs a packet's lanes one after
-// another in one thread. On an H200 through NVIDIA's OpenCL the knot of bench_transport
-// traced 0.22 G rays/s in packets of 16 and 0.75 G rays/s one ray per work-item
-// (bench/results/gpu.md).
+// (the scalar kernels: a work-item's rays one at a time) on any other: a GPU's compiler runs
+// a packet's lanes one after another in one thread. On an H200 through NVIDIA's OpenCL the
+// knot of bench_transport traced 0.22 G rays/s in packets of 16 and 0.75 G rays/s with the
+// scalar kernels (bench/results/gpu.md).
 int packetWidthFor(const DeviceInfo& device, int requested);
 // The BVH's nodes on the device: the 4-wide tree for the packet kernels (`wide`), else
 // the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
