@@ -536,13 +536,19 @@ void bake(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail
   r.kernelSeconds = secondsSince(tKernel);
 }
 
+// The options checked, with the packet width the device takes (detail::packetWidthFor).
+TransportOptions checkedFor(const Runtime& rt, const TransportOptions& options) {
+  detail::checkTransportOptions(options);
+  TransportOptions o = options;
+  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
+  return o;
+}
+
 }  // namespace
 
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& options) {
   const auto tStart = Clock::now();
-  detail::checkTransportOptions(options);
-  TransportOptions o = options;
-  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
+  const TransportOptions o = checkedFor(rt, options);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   TransportResult r;
   r.order = o.order;
@@ -567,9 +573,7 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
 TransportResult computeTransportAtPoints(Runtime& rt, const Mesh& mesh, const SurfacePoints& pts,
                                          const TransportOptions& options) {
   const auto tStart = Clock::now();
-  detail::checkTransportOptions(options);
-  TransportOptions o = options;
-  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
+  const TransportOptions o = checkedFor(rt, options);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   if (pts.positions.size() % 3 || pts.normals.size() != pts.positions.size() ||
       pts.faceNormals.size() != pts.positions.size())
@@ -615,9 +619,7 @@ TransportResult computeTransportAtPoints(Runtime& rt, const Mesh& mesh, const Su
 }
 
 std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const TransportOptions& options) {
-  detail::checkTransportOptions(options);
-  TransportOptions o = options;
-  o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
+  const TransportOptions o = checkedFor(rt, options);
   validateMesh(mesh, mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath);
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o);
   const Bvh bvh = buildBvh(mesh);
