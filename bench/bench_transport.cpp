@@ -2,8 +2,11 @@
 // scene, 1024 samples) and on a procedural ~200k-triangle bumpy sphere, SH orders 3 and 5.
 //
 // usage: bench_transport [--repeats N] [--samples-large N] [--device SPEC] [--packet-width W] [--knot]
-// --packet-width: TransportOptions::packetWidth (16, 8, 0 for one ray per work-item, or the
+//                        [--bounces B]
+// --packet-width: TransportOptions::packetWidth (16, 8, 0 for the scalar kernels, or the
 // default -1: 16 on a CPU device, 0 on a GPU);
+// --bounces: B > 0 makes it interreflected with B bounces (--bounce-tolerance 0), rays counting
+// the bounces' too (default 0: shadowed);
 // --knot: the large mesh is the torus knot of bench_embree.sh (204,800 triangles).
 // Prints one line per case: wall seconds of computeTransport (median of N runs; the
 // programs are built beforehand on a tiny mesh), kernel seconds, rays, rays/s, and rays
@@ -37,11 +40,14 @@ double median(std::vector<double> v) {
 }
 
 int packetWidth = TransportOptions{}.packetWidth;
+int bounces = 0;
 
 void run(Runtime& rt, const std::string& name, const Mesh& mesh, int order, int samples, int repeats) {
   TransportOptions o;
   o.packetWidth = packetWidth;
-  o.mode = TransportMode::Shadowed;
+  o.mode = bounces > 0 ? TransportMode::Interreflected : TransportMode::Shadowed;
+  o.bounces = bounces;
+  o.bounceTolerance = 0;
   o.order = order;
   o.samples = samples;
   computeTransport(rt, makeUvSphere(1.0, 4, 8), o);  // program build and first launch
@@ -76,12 +82,13 @@ int main(int argc, char** argv) {
     else if (a == "--samples-large") samplesLarge = std::atoi(argv[i + 1]);
     else if (a == "--device") device = argv[i + 1];
     else if (a == "--packet-width") packetWidth = std::atoi(argv[i + 1]);
+    else if (a == "--bounces") bounces = std::atoi(argv[i + 1]);
     else if (a == "--knot") --i;
   }
   Runtime rt(device);
   std::printf("device: %s\n", rt.deviceLabel().c_str());
-  std::printf("shadowed transport, packet width %d (-1: 16 on a CPU device, 0 on a GPU); median of %d runs (mary.obj), %d (large mesh)\n", packetWidth, repeats,
-              std::max(1, repeats / 3));
+  std::printf("%s transport, %d bounces, packet width %d (-1: 16 on a CPU device, 0 on a GPU); median of %d runs (mary.obj), %d (large mesh)\n",
+              bounces > 0 ? "interreflected" : "shadowed", bounces, packetWidth, repeats, std::max(1, repeats / 3));
   const std::string maryPath = std::string(PRTBAKE_BENCH_DATA_DIR) + "/meshes/obj/mary.obj";
   try {
     const Mesh mary = loadMesh(maryPath);

@@ -14,8 +14,8 @@
 //
 // Build options: SH_ORDER (1..8 or more), VISIBILITY (0: unshadowed, no BVH access;
 // 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only), BVH_PACKET (0: the
-// scalar kernels below; 8 or 16: only the packet kernels at the end of this file,
-// which evaluate SH on float8/float16 directions).
+// scalar kernels below; 8 or 16: the packet kernels after them instead, which evaluate
+// SH on float8/float16 directions; transport_gather, at the end, in both).
 #ifndef BVH_PACKET
 #define BVH_PACKET 0
 #endif
@@ -38,6 +38,8 @@
 #define CHANNELS 1
 #endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
+// Rays per word of the scalar kernels' blocked-ray masks (ushort words, as the packets').
+#define TRANSPORT_MASK_BITS 16
 // Per-coefficient loops of the packet kernels are unrolled up to order 8, so their
 // accumulators stay in registers instead of a load, add and store per coefficient.
 #if SH_ORDER <= 8
@@ -82,10 +84,14 @@ inline void bounce_gather(int tri, float u, float v, __global const int4* indice
 // tMax:     ray length (beyond the scene's bounding box)
 // coeffs:   V × SH_COUNT output, vertex-major: Σ_s V(p, ω_s) Y_i(ω_s)
 // visible:  V output, the number of unoccluded directions (for the error estimate)
+// blocked:  when maskWords > 0, V × maskWords words, bit s % 16 of word s / 16 set where ray s
+//           is blocked, written for every vertex (for the bounces, which trace the same rays:
+//           transport_bounce)
 __kernel void transport_direct(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
-                               __global float* coeffs, __global float* visible) {
+                               __global float* coeffs, __global float* visible, __global ushort* blocked,
+                               int maskWords) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
@@ -95,16 +101,25 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
   if (dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
     const float3 o = origins[vi].xyz;
     const bool trace = origins[vi].w == 0.0f;
+    uint bits = 0;  // the blocked rays of the current word
     for (int s = 0; s < sampleCount; ++s) {
       const float3 d = sampling_to_world(frame, dirs[s]);
 #if VISIBILITY
-      if (trace && bvh_occluded(nodes, tris, o, d, tMax)) continue;
+      const bool hit = trace && bvh_occluded(nodes, tris, o, d, tMax);
+      bits |= (uint)hit << (s % TRANSPORT_MASK_BITS);
+      if (maskWords > 0 && (s % TRANSPORT_MASK_BITS == TRANSPORT_MASK_BITS - 1 || s == sampleCount - 1)) {
+        blocked[(size_t)vi * maskWords + s / TRANSPORT_MASK_BITS] = (ushort)bits;
+        bits = 0;
+      }
+      if (hit) continue;
 #endif
       ++seen;
       float y[SH_COUNT];
       sh_eval(SH_ORDER, d.x, d.y, d.z, y);
       for (int k = 0; k < SH_COUNT; ++k) acc[k] += y[k];
     }
+  } else {
+    for (int w = 0; w < maskWords; ++w) blocked[(size_t)vi * maskWords + w] = 0;  // no normal: no rays
   }
   for (int k = 0; k < SH_COUNT; ++k) coeffs[(size_t)vi * SH_COUNT + k] = acc[k];
   visible[vi] = (float)seen;
@@ -133,11 +148,19 @@ __kernel void transport_visibility(int vertexCount, int sampleCount, __global co
 // albedo:  V × (r, g, b, 0) linear albedo (CHANNELS = 1 reads r)
 // prev:    V × CHANNELS × SH_COUNT, the previous bounce T^(k)
 // next:    V × CHANNELS × SH_COUNT output, the sums of T^(k+1)
+// blocked, maskWords: when maskWords > 0, the direct term's blocked rays (transport_direct) of
+//          these same rays: the others hit nothing and are not traced.
+// hits, hitStart, chunks, chunk: when chunks > 0, the hits of the traced rays are also
+//          written (tri as int bits, u, v: 3 floats each), those of this vertex and launch
+//          (of `chunks`) in sample order from hits + 3 · hitStart[vertex · chunks + chunk],
+//          for transport_gather.
 __kernel void transport_bounce(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
                                __global const int4* indices, __global const float4* albedo,
-                               __global const float* prev, __global float* next) {
+                               __global const float* prev, __global float* next, __global const ushort* blocked,
+                               int maskWords, __global float* hits, __global const int* hitStart, int chunks,
+                               int chunk) {
   const int vi = get_global_id(0);
   if (vi >= vertexCount) return;
   __global const float4* frame = frames + (size_t)vi * 3;
@@ -145,10 +168,20 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
   if (dot(frame[2].xyz, frame[2].xyz) > 0.0f && origins[vi].w == 0.0f) {  // w = 1: nothing in reach
     const float3 o = origins[vi].xyz;
+    __global float* out = chunks > 0 ? hits + 3 * (size_t)hitStart[(size_t)vi * chunks + chunk] : hits;
     for (int s = 0; s < sampleCount; ++s) {
+      if (maskWords > 0) {
+        const uint rest = (uint)blocked[(size_t)vi * maskWords + s / TRANSPORT_MASK_BITS] >> (s % TRANSPORT_MASK_BITS);
+        if (rest == 0) {  // no blocked ray left in this word
+          s |= TRANSPORT_MASK_BITS - 1;
+          continue;
+        }
+        if (!(rest & 1u)) continue;
+      }
       const float3 d = sampling_to_world(frame, dirs[s]);
       float u = 0.0f, v = 0.0f;
       const int tri = bvh_closest(nodes, tris, o, d, tMax, &u, &v);
+      if (chunks > 0) out[0] = as_float(tri), out[1] = u, out[2] = v, out += 3;
       bounce_gather(tri, u, v, indices, albedo, prev, acc);
     }
   }
@@ -305,8 +338,10 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
 }
 
-// A bounce from the hits transport_bounce_packet wrote for launch `chunk` (the same rays,
-// the same order, so the same sums): no tracing. Arguments as there.
+#endif  // BVH_PACKET
+
+// A bounce from the hits that transport_bounce or transport_bounce_packet wrote for launch
+// `chunk` (the same rays, the same order, so the same sums): no tracing. Arguments as there.
 __kernel void transport_gather(int vertexCount, __global const float* hits, __global const int* hitStart, int chunks,
                                int chunk, __global const int4* indices, __global const float4* albedo,
                                __global const float* prev, __global float* next) {
@@ -319,5 +354,3 @@ __kernel void transport_gather(int vertexCount, __global const float* hits, __gl
     bounce_gather(as_int(hits[3 * (size_t)h]), hits[3 * (size_t)h + 1], hits[3 * (size_t)h + 2], indices, albedo, prev, acc);
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
 }
-
-#endif  // BVH_PACKET

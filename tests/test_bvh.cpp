@@ -191,16 +191,21 @@ TEST_CASE("Kernel vs double reference: interreflection bounces", "[bvh][kernel]"
   o.bounceTolerance = 0;
   o.albedoOverride = std::array<float, 3>{0.9f, 0.5f, 0.2f};
   const auto ref = computeTransportReference(m, o);
-  const auto r = computeTransport(test::runtime(), m, o);
-  REQUIRE(r.channels == 3);
-  REQUIRE(r.coeffs.size() == ref.coeffs.size());
-  // Float gather and barycentrics vs double; a ray hitting a different triangle at a
-  // shared edge interpolates the same T there. 1e-4 of coefficients ~0.3.
-  constexpr double kBounceTol = 1e-4;
-  double worst = 0;
-  for (size_t i = 0; i < r.coeffs.size(); ++i) worst = std::max(worst, std::abs(double(r.coeffs[i]) - ref.coeffs[i]));
-  INFO("max |kernel - reference| = " << worst);
-  CHECK(worst < kBounceTol);
+  // The packet kernels and the scalar ones (each tracing only the direct term's blocked rays
+  // in the first bounce and gathering its hits in the second) against every ray in double.
+  for (int width : {16, 0}) {
+    o.packetWidth = width;
+    const auto r = computeTransport(test::runtime(), m, o);
+    REQUIRE(r.channels == 3);
+    REQUIRE(r.coeffs.size() == ref.coeffs.size());
+    // Float gather and barycentrics vs double; a ray hitting a different triangle at a
+    // shared edge interpolates the same T there. 1e-4 of coefficients ~0.3.
+    constexpr double kBounceTol = 1e-4;
+    double worst = 0;
+    for (size_t i = 0; i < r.coeffs.size(); ++i) worst = std::max(worst, std::abs(double(r.coeffs[i]) - ref.coeffs[i]));
+    INFO("packet width " << width << ": max |kernel - reference| = " << worst);
+    CHECK(worst < kBounceTol);
+  }
 }
 
 TEST_CASE("Packet kernels (16, 8 lanes) agree with the scalar kernel", "[bvh][kernel]") {
@@ -263,10 +268,10 @@ TEST_CASE("The default packet width follows the device", "[bvh]") {
 
 TEST_CASE("Bounces trace only the rays that the direct term found blocked, once", "[bvh][kernel]") {
   // The bounces trace the direct term's rays again; a ray that nothing blocked there
-  // hits nothing, and the packet kernels skip it (and every ray of a vertex that no
-  // triangle can reach). The first bounce keeps its hits and the second gathers from
-  // them without tracing. 1030 samples: two launches of directions, the last packet
-  // part-filled.
+  // hits nothing, and the kernels, packet and scalar, skip it (and every ray of a vertex that
+  // no triangle can reach). The first bounce keeps its hits and the second gathers from
+  // them without tracing. 1030 samples: two launches of directions, the last packet and
+  // the last mask word part-filled.
   const Mesh m = occludingScene();
   TransportOptions o;
   o.samples = 1030;
@@ -281,10 +286,12 @@ TEST_CASE("Bounces trace only the rays that the direct term found blocked, once"
   const auto packet = computeTransport(test::runtime(), m, o);
   const uint64_t direct = uint64_t(m.vertexCount() - packet.verticesUnoccludable) * uint64_t(o.samples);
   CHECK(packet.rays == direct + blocked);
-  // The same coefficients as the scalar kernels, which trace every ray: float summation
-  // order (1e-5, as above) and ties at shared edges, which interpolate the same T.
+  // The same rays traced by the scalar kernels, and the same coefficients: float summation
+  // order (1e-5, as above) and ties at shared edges, which interpolate the same T. (Both
+  // forms against the brute-force reference, which traces every ray: test_transport.)
   o.packetWidth = 0;
   const auto scalar = computeTransport(test::runtime(), m, o);
+  CHECK(scalar.rays == direct + blocked);
   REQUIRE(packet.coeffs.size() == scalar.coeffs.size());
   double worst = 0;
   for (size_t i = 0; i < packet.coeffs.size(); ++i)

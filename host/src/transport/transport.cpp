@@ -32,6 +32,9 @@ constexpr size_t kRaysPerBlock = size_t(1) << 22;
 // The most device memory the direct term's blocked-ray masks may take (a bit per ray:
 // 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
 constexpr double kMaskBytes = 256.0 * 1024 * 1024;
+// Rays per 16-bit mask word of the scalar kernels (TRANSPORT_MASK_BITS in transport.cl; a
+// packet kernel's word holds a packet).
+constexpr int kScalarMaskBits = 16;
 
 size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
@@ -47,9 +50,9 @@ class Tracer {
       : rt_(rt), mesh_(mesh), o_(o), setup_(setup), visibility_(visibility), nc_(o.order * o.order) {
     // Without --tolerance the bounces trace the direct term's rays again (same count, seed,
     // origins and frames): a ray that nothing blocked there hits nothing in a bounce.
-    const double packets = std::ceil(o.samples / double(std::max(o.packetWidth, 1)));
+    const double words = std::ceil(o.samples / double(o.packetWidth > 0 ? o.packetWidth : kScalarMaskBits));
     keepBlocked_ = pointsAreVertices && visibility && o.mode == TransportMode::Interreflected && o.tolerance <= 0 &&
-                   o.packetWidth > 0 && double(mesh.vertexCount()) * packets * 2 <= kMaskBytes;
+                   double(mesh.vertexCount()) * words * 2 <= kMaskBytes;
     noMask_ = rt.upload(std::vector<float>(1, 0.0f));
     if (visibility) {
       const auto t0 = Clock::now();
@@ -149,12 +152,12 @@ class Tracer {
       if (replay) {  // the hits of the first bounce, gathered again
         gatherHits(nv, channels, prev, out, collect);
       } else {
+        const int hitArg = o_.packetWidth > 0 ? 15 : 14;  // after the mask's two arguments
         forEachChunk(k, samples, nv, 12, reuse ? MaskUse::Read : MaskUse::None, [&](int chunk) {
-          if (o_.packetWidth <= 0) return;
-          k.setArg(15, record ? hits_ : noMask_);
-          k.setArg(16, record ? hitStart_ : noMask_);
-          k.setArg(17, record ? hitChunks_ : 0);
-          k.setArg(18, chunk);
+          k.setArg(hitArg, record ? hits_ : noMask_);
+          k.setArg(hitArg + 1, record ? hitStart_ : noMask_);
+          k.setArg(hitArg + 2, record ? hitChunks_ : 0);
+          k.setArg(hitArg + 3, chunk);
         }, collect);
         hitsWritten_ = record;
       }
@@ -241,8 +244,9 @@ class Tracer {
   }
 
   // Launches `k` over nv vertices for each chunk of the direction set, then `collect`.
-  // paddedArg: the packet kernels' argument index of the padded direction count, followed
-  // by the blocked-ray mask and its words per vertex (written, read, or none: 0 words).
+  // paddedArg: the argument index of the packet kernels' padded direction count, followed
+  // by the blocked-ray mask and its words per vertex (written, read, or none: 0 words); the
+  // scalar kernels take the mask there, without the count.
   // before(chunk) sets what else a launch needs; collect(chunk, directions) reads it back.
   enum class MaskUse { None, Write, Read };
   template <class Before, class Collect>
@@ -253,19 +257,20 @@ class Tracer {
     for (int first = 0, chunk = 0; first < samples; first += detail::kTransportSampleChunk, ++chunk) {
       const int n = std::min(detail::kTransportSampleChunk, samples - first);
       std::vector<float> dirs = detail::directionChunk(samples, first, n, o_.seed, o_.sampler);
-      int padded = 0;
-      if (packet) dirs = detail::packetDirections(dirs, padded);
+      int words = (n + kScalarMaskBits - 1) / kScalarMaskBits, maskArg = paddedArg;
+      if (packet) {
+        int padded = 0;
+        dirs = detail::packetDirections(dirs, padded);
+        k.setArg(paddedArg, padded);
+        words = padded / o_.packetWidth;
+        maskArg = paddedArg + 1;
+      }
       const cl::Buffer d = rt_.upload(dirs);
       k.setArg(1, n);
       k.setArg(4, d);
-      if (packet) {
-        const int words = padded / o_.packetWidth;
-        k.setArg(paddedArg, padded);
-        if (mask == MaskUse::Write)
-          blocked_.emplace_back(rt_.context(), CL_MEM_READ_WRITE, size_t(nv) * size_t(words) * 2);
-        k.setArg(paddedArg + 1, mask == MaskUse::None ? noMask_ : blocked_[size_t(chunk)]);
-        k.setArg(paddedArg + 2, mask == MaskUse::None ? 0 : words);
-      }
+      if (mask == MaskUse::Write) blocked_.emplace_back(rt_.context(), CL_MEM_READ_WRITE, size_t(nv) * size_t(words) * 2);
+      k.setArg(maskArg, mask == MaskUse::None ? noMask_ : blocked_[size_t(chunk)]);
+      k.setArg(maskArg + 1, mask == MaskUse::None ? 0 : words);
       before(chunk);
       const int chunks = (samples + detail::kTransportSampleChunk - 1) / detail::kTransportSampleChunk;
       launchVertices(k, nv, n, double(chunk) / chunks, 1.0 / chunks);
