@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # prtbake on a machine with an NVIDIA GPU beside PoCL's CPU device, in one run of about six
 # minutes: what enumerated (prtbake devices, nvidia-smi, clinfo), the torus knot's transport
-# (shadowed 1024 / 8192 / 65536 rays per vertex, interreflected with one bounce; occlusion
-# rays per second from the sidecar's kernel time; GPU coefficients against the CPU's),
+# (shadowed 1024 / 8192 / 65536 rays per vertex, 1024 also in work-groups of 16, 32 and 128
+# instead of the GPU's 64, interreflected with one bounce; occlusion rays per second from the
+# sidecar's kernel time; GPU coefficients against the CPU's),
 # cold and warm `prtbake lut` (empty NVIDIA and PoCL program caches), whole commands (env,
 # lut, prefilter, ibl, glossy transfer with CPCA, mesh transport and preview) on both
 # devices, and the benchmark programs of build/bench on both. Every step runs under
@@ -273,8 +274,9 @@ KNOT=$work/knot.obj
 if [ -f "$DATA/knot.obj.gz" ]; then gzip -dc "$DATA/knot.obj.gz" > "$KNOT"; fi
 trow=()
 knot() {  # ID LABEL DEVNAME DEV LIMIT ARGS...: one knot transport, its sidecar figures kept for the table
+  # (GS=N before it: the kernels' work-group size, PRTBAKE_GROUP_SIZE, instead of the device's)
   local id=$1 label=$2 dn=$3 dev=$4 lim=$5; shift 5
-  step "$id" "knot: $label" "$dn" "$lim" "$PRTBAKE" transport "$KNOT" -o "$work/$id.npy" --device "$dev" "$@"
+  step "$id" "knot: $label" "$dn" "$lim" env ${GS:+PRTBAKE_GROUP_SIZE=$GS} "$PRTBAKE" transport "$KNOT" -o "$work/$id.npy" --device "$dev" "$@"
   trow+=("$id|$label|$dn|$STATUS|$WALL")
 }
 if [ -s "$KNOT" ]; then
@@ -282,6 +284,9 @@ if [ -s "$KNOT" ]; then
   knot k_cpu_first "shadowed, 64 rays/vertex, first CPU transport (program build)" cpu "$CPU" 90 --samples 64
   knot k_gpu_s1 "shadowed, $S1 rays/vertex" gpu "$GPU" 60 --samples "$S1"
   knot k_gpu_s1b "shadowed, $S1 rays/vertex, again" gpu "$GPU" 60 --samples "$S1"
+  for gs in 16 32 128; do  # the device's default is 64 (Runtime::loopGroupSize); 16 was every device's before
+    GS=$gs knot "k_gpu_s1_g$gs" "shadowed, $S1 rays/vertex, work-groups of $gs" gpu "$GPU" 60 --samples "$S1"
+  done
   knot k_cpu_s1 "shadowed, $S1 rays/vertex" cpu "$CPU" 60 --samples "$S1"
   knot k_gpu_s2 "shadowed, $S2 rays/vertex" gpu "$GPU" 60 --samples "$S2"
   knot k_cpu_s2 "shadowed, $S2 rays/vertex" cpu "$CPU" 60 --samples "$S2"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Packs what bench/bench_gpu.sh needs on a bare GPU machine into DEST (default .gpu/ in the
 # repository root, which this script adds to the main repository's .git/info/exclude):
-#   bin/       prtbake and the benchmark programs of BUILD/bench (stripped copies)
+#   bin/       prtbake and the benchmark programs of BUILD/bench but bench_embree (stripped copies)
 #   lib/       every shared library they link that is neither glibc's, libstdc++/libgcc_s
 #              nor the OpenCL ICD loader (OpenEXR, Iex, IlmThread, Imath, tinygltf,
 #              tinyobjloader, stb, zlib)
@@ -29,7 +29,8 @@ grep -qxF '/.gpu/' "$exclude" 2>/dev/null || echo '/.gpu/' >> "$exclude"
 rm -rf "$DEST"
 mkdir -p "$DEST"/{bin,lib,lib-cxx,lib-ocl,data}
 bins=("$BUILD/prtbake")
-for b in "$BUILD"/bench/bench_*; do [ -x "$b" ] && [ -f "$b" ] && bins+=("$b"); done
+# (bench_embree, the CPU peer of bench_embree.sh, stays: Embree alone is 44 MB.)
+for b in "$BUILD"/bench/bench_*; do [ -x "$b" ] && [ -f "$b" ] && [ "${b##*/}" != bench_embree ] && bins+=("$b"); done
 for b in "${bins[@]}"; do
   cp "$b" "$DEST/bin/"
   strip --strip-unneeded "$DEST/bin/$(basename "$b")" 2>/dev/null || true

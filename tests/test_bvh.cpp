@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -11,6 +12,7 @@
 #include "prtbake/bvh.h"
 #include "prtbake/error.h"
 #include "prtbake/mesh.h"
+#include "prtbake/runtime.h"
 #include "prtbake/transport.h"
 #include "test_common.h"
 #include "transport/transport_setup.h"
@@ -264,6 +266,42 @@ TEST_CASE("The default packet width follows the device", "[bvh]") {
   TransportOptions o;
   o.packetWidth = 4;
   CHECK_THROWS_AS(computeTransport(test::runtime(), occludingScene(), o), UsageError);
+}
+
+TEST_CASE("The ray-looping kernels' group size follows the device, and every size gives the same bytes", "[bvh][kernel]") {
+  DeviceInfo cpu, gpu, other;
+  cpu.type = "cpu", gpu.type = "gpu", other.type = "other";
+  CHECK(defaultLoopGroupSize(cpu) == 16);
+  CHECK(defaultLoopGroupSize(gpu) == 64);
+  CHECK(defaultLoopGroupSize(other) == 64);
+  CHECK(test::runtime().loopGroupSize() == 16);
+  // A GPU's group size (and an odd one) on this CPU device: each work-item's sums are its own,
+  // so the coefficients are the same bytes, direct and with two bounces (the blocked-ray masks
+  // and kept hits indexed by vertex), packets and scalar kernels; the scene's vertex count is
+  // no multiple of either size, so the last group is part-filled.
+  const Mesh m = occludingScene();
+  REQUIRE(m.vertexCount() % 64 != 0);
+  TransportOptions o;
+  o.samples = 100;
+  o.albedoOverride = std::array<float, 3>{0.8f, 0.6f, 0.3f};
+  for (const char* size : {"64", "7"}) {
+    const auto grouped = test::runtimeWithGroupSize(size);
+    Runtime& rt = *grouped;
+    CHECK(rt.loopGroupSize() == size_t(std::atoi(size)));
+    for (TransportMode mode : {TransportMode::Shadowed, TransportMode::Interreflected})
+      for (int width : {16, 0}) {
+        o.mode = mode, o.bounces = 2, o.bounceTolerance = 0, o.packetWidth = width;
+        const auto a = computeTransport(test::runtime(), m, o), b = computeTransport(rt, m, o);
+        INFO("group size " << size << ", mode " << int(mode) << ", packet width " << width);
+        REQUIRE(a.coeffs.size() == b.coeffs.size());
+        CHECK(std::memcmp(a.coeffs.data(), b.coeffs.data(), a.coeffs.size() * sizeof(float)) == 0);
+        CHECK(a.rays == b.rays);
+      }
+  }
+  for (const char* bad : {"0", "abc", "64x", "1000000000"}) {
+    INFO(bad);
+    CHECK_THROWS_AS(test::runtimeWithGroupSize(bad), UsageError);
+  }
 }
 
 TEST_CASE("Bounces trace only the rays that the direct term found blocked, once", "[bvh][kernel]") {

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,21 @@ namespace prtbake::test {
 inline Runtime& runtime() {
   static Runtime rt("cpu");
   return rt;
+}
+
+// A runtime on the CPU device whose ray-looping kernels run in groups of `size`
+// ($PRTBAKE_GROUP_SIZE while it is made: Runtime::loopGroupSize), so that a GPU's group size
+// can be held to the same outputs here.
+inline std::unique_ptr<Runtime> runtimeWithGroupSize(const char* size) {
+  ::setenv("PRTBAKE_GROUP_SIZE", size, 1);
+  try {
+    auto rt = std::make_unique<Runtime>("cpu");
+    ::unsetenv("PRTBAKE_GROUP_SIZE");
+    return rt;
+  } catch (...) {
+    ::unsetenv("PRTBAKE_GROUP_SIZE");
+    throw;
+  }
 }
 
 // ../shared/data (or $PRTBAKE_DATA_DIR); empty when absent.

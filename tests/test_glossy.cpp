@@ -378,6 +378,8 @@ TEST_CASE("Vertex ranges are bit-identical to the same vertices of a whole run",
     GlossyOptions o = gopts(mode, 3, 3, 256);
     o.bounces = 2;
     const GlossyResult whole = computeGlossyTransfer(test::runtime(), scene, o);
+    // A GPU's group size (Runtime::loopGroupSize) on this device: the same bytes.
+    CHECK(computeGlossyTransfer(*test::runtimeWithGroupSize("64"), scene, o).matrices == whole.matrices);
     o.firstVertex = 37;
     o.vertexCount = 50;
     o.blockVertices = 16;  // blocks of another size: the values must not depend on them

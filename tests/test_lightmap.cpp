@@ -269,6 +269,11 @@ TEST_CASE("Lightmap: a bake split into sample ranges and repaired once equals th
   o.shOrder = 2;
   const ShCoeffs env = constantEnv(0.8);
   const LightmapResult whole = computeLightmap(test::runtime(), m, env, o);
+  {  // a GPU's group size (Runtime::loopGroupSize) on this device: the same bytes
+    const LightmapResult grouped = computeLightmap(*test::runtimeWithGroupSize("64"), m, env, o);
+    CHECK(grouped.ao == whole.ao);
+    CHECK(grouped.sh == whole.sh);
+  }
   const LightmapSamples samples = lightmapSamples(m, o);
   const size_t total = samples.texelOf.size();
   LightmapResult joined = samples.lm;

@@ -34,6 +34,14 @@ struct DeviceInfo {
   bool fp64 = false;
 };
 
+// Work-items per group for the kernels in which each work-item loops over many rays (a
+// vertex, texel or probe each: transport, glossy transfer, lightmaps, probe grids): 16 on a
+// CPU device, where PoCL runs a group's work-items one after another and small groups balance
+// over the cores; 64 on any other. A GPU runs a group in warps of 32 threads, and NVIDIA's
+// keep at most 32 groups resident on a multiprocessor of 2,048 threads (compute capability
+// 8.0 and 9.0), so groups of 16 leave half of each warp idle and three quarters of its threads.
+size_t defaultLoopGroupSize(const DeviceInfo& device);
+
 // Every OpenCL device of every platform, in platform then device order.
 std::vector<DeviceInfo> listDevices();
 
@@ -74,6 +82,9 @@ class Runtime {
 
   // Largest work-group size the device accepts for a 1-D launch.
   size_t maxWorkGroupSize() const;
+  // The group size of the ray-looping kernels: defaultLoopGroupSize, or $PRTBAKE_GROUP_SIZE
+  // (1 to maxWorkGroupSize(), for benchmarks; another value is a UsageError).
+  size_t loopGroupSize() const { return loopGroupSize_; }
 
   // A read-only device buffer holding `data`, copied when the buffer is created (no
   // command and no wait on the queue: a blocking write costs a round trip to the
@@ -95,6 +106,7 @@ class Runtime {
   std::map<std::string, cl::Kernel> kernels_;
   std::mutex mutex_;
   double buildSeconds_ = 0.0;
+  size_t loopGroupSize_ = 16;
 };
 
 // Converts an OpenCL error code into its symbolic name ("CL_OUT_OF_RESOURCES").

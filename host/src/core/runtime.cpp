@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -190,9 +191,20 @@ Runtime::Runtime(const std::string& deviceSpec) {
     throw DeviceError(deviceLabel(), std::string("cannot create a context: ") + e.what() + " (" +
                                          clErrorName(e.err()) + ")");
   }
+  loopGroupSize_ = std::min(defaultLoopGroupSize(info_), maxWorkGroupSize());
+  if (const char* env = std::getenv("PRTBAKE_GROUP_SIZE"); env && *env) {
+    char* end = nullptr;
+    const long long n = std::strtoll(env, &end, 10);
+    if (*end || n < 1 || size_t(n) > maxWorkGroupSize())
+      throw UsageError("PRTBAKE_GROUP_SIZE", "\"" + std::string(env) + "\" is not a work-group size of 1 to " +
+                                                 std::to_string(maxWorkGroupSize()) + " on " + deviceLabel());
+    loopGroupSize_ = size_t(n);
+  }
   std::lock_guard<std::mutex> lock(gLastLabelMutex);
   gLastLabel = deviceLabel();
 }
+
+size_t defaultLoopGroupSize(const DeviceInfo& device) { return device.type == "cpu" ? 16 : 64; }
 
 std::string Runtime::deviceLabel() const { return trim(info_.name) + " (" + trim(info_.platform) + ")"; }
 

@@ -23,9 +23,6 @@ namespace prtbake {
 namespace {
 using Clock = std::chrono::steady_clock;
 
-// Work-items per group (one vertex each; the kernels loop, so PoCL runs them scalar
-// over work-items and 16 lanes wide inside each).
-constexpr size_t kLocalSize = 16;
 // Directions per launch: no kernel sums more than this many in float.
 constexpr int kSampleChunk = 1024;
 // Host memory of one block's double sums, at most (the block size shrinks to fit).
@@ -284,7 +281,7 @@ class GlossyBaker {
   // blocked one can hit a surface; the other colour channels then read the first's hits (12
   // bytes a blocked ray, at most detail::kKeptHitBytes).
   void traceGram(size_t nb, size_t traced) {
-    const cl::NDRange global(roundUp(nb, kLocalSize)), local(kLocalSize);
+    const cl::NDRange global(roundUp(nb, rt_.loopGroupSize())), local(rt_.loopGroupSize());
     gram_.assign(nb * gramCount_, 0.0);
     cl::Buffer gramOut(rt_.context(), CL_MEM_WRITE_ONLY, nb * gramCount_ * 4);
     part_.resize(nb * gramCount_);
@@ -334,7 +331,7 @@ class GlossyBaker {
 
   // The bounce sums of the block, per colour channel and chunk.
   void traceBounce(size_t nb) {
-    const cl::NDRange global(roundUp(nb, kLocalSize)), local(kLocalSize);
+    const cl::NDRange global(roundUp(nb, rt_.loopGroupSize())), local(rt_.loopGroupSize());
     const size_t nbc = size_t(no2_) * ni2_;
     bounceSums_.assign(nb * ch_ * nbc, 0.0);
     cl::Buffer bounceOut(rt_.context(), CL_MEM_WRITE_ONLY, nb * nbc * 4);

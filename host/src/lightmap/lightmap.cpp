@@ -263,8 +263,8 @@ std::vector<uint8_t> unocclude(Runtime& rt, const Mesh& mesh, SurfacePoints& pts
   k.setArg(a++, fn);
   k.setArg(a++, cn);
   k.setArg(a++, out);
-  constexpr size_t kLocal = 16;
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((n + kLocal - 1) / kLocal * kLocal), cl::NDRange(kLocal));
+  const size_t local = rt.loopGroupSize();
+  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((n + local - 1) / local * local), cl::NDRange(local));
   std::vector<float> result(n * 4);
   rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, result.size() * 4, result.data());
   for (size_t i = 0; i < n; ++i) {

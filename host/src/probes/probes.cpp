@@ -23,7 +23,6 @@ namespace prtbake {
 namespace {
 using Clock = std::chrono::steady_clock;
 
-constexpr size_t kLocalSize = 16;
 // Rays per launch: about 0.25 s on a 2-core CPU, so that progress and Ctrl-C stay prompt.
 constexpr size_t kRaysPerLaunch = size_t(1) << 21;
 // The pilot that tests relocation candidates: rings × segments of its quadrature.
@@ -139,7 +138,8 @@ class ProbeTracer {
     for (int i = 0; i < samples; ++i)
       for (int c = 0; c < 4; ++c) soa[size_t(c) * padded + i] = dirs[4 * size_t(i) + c];
     cl::Buffer dirBuf = rt_.upload(packet_ ? soa : dirs);
-    const size_t block = std::max<size_t>(kLocalSize, kRaysPerLaunch / size_t(samples) / kLocalSize * kLocalSize);
+    const size_t local = rt_.loopGroupSize();
+    const size_t block = std::max<size_t>(local, kRaysPerLaunch / size_t(samples) / local * local);
     for (size_t first = 0; first < n; first += block) {
       const size_t count = std::min(block, n - first);
       std::vector<float> origins(count * 4, 0.0f), frames(count * 12);
@@ -163,8 +163,8 @@ class ProbeTracer {
         kernel_.setArg(a++, padded);
         kernel_.setArg(a++, backStop);
       }
-      const size_t global = (count + kLocalSize - 1) / kLocalSize * kLocalSize;
-      rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global), cl::NDRange(kLocalSize));
+      const size_t global = (count + local - 1) / local * local;
+      rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
       rt_.queue().enqueueReadBuffer(outC, CL_FALSE, 0, count * nc * sizeof(float), coeffs.data() + first * nc);
       rt_.queue().enqueueReadBuffer(outB, CL_TRUE, 0, count * sizeof(float), backface.data() + first);
       rays += uint64_t(count) * uint64_t(samples);

@@ -22,9 +22,6 @@ namespace prtbake {
 namespace {
 using Clock = std::chrono::steady_clock;
 
-// Work-items per group: the kernels loop (samples, traversal), so PoCL runs them
-// scalar; 16 keeps the groups numerous enough to balance over the cores.
-constexpr size_t kLocalSize = 16;
 // Rays per launch when a progress hook wants the work in pieces: about 0.25 s on a 2-core CPU
 // (16 M rays/s), a few milliseconds on a GPU.
 constexpr size_t kRaysPerBlock = size_t(1) << 22;
@@ -282,15 +279,15 @@ class Tracer {
   // about kRaysPerBlock rays (whole work-groups, so the same bits), each waited for and
   // reported as fraction done + span × the part launched.
   void launchVertices(cl::Kernel& k, int nv, int raysPerVertex, double done, double span) {
-    const size_t global = roundUp(size_t(nv), kLocalSize);
+    const size_t local = rt_.loopGroupSize(), global = roundUp(size_t(nv), local);
     if (!progressWanted()) {
-      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(kLocalSize));
+      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
       return;
     }
-    const size_t block = std::max(kLocalSize, kRaysPerBlock / size_t(std::max(raysPerVertex, 1)) / kLocalSize * kLocalSize);
+    const size_t block = std::max(local, kRaysPerBlock / size_t(std::max(raysPerVertex, 1)) / local * local);
     for (size_t first = 0; first < global; first += block) {
       const size_t n = std::min(block, global - first);
-      rt_.queue().enqueueNDRangeKernel(k, cl::NDRange(first), cl::NDRange(n), cl::NDRange(kLocalSize));
+      rt_.queue().enqueueNDRangeKernel(k, cl::NDRange(first), cl::NDRange(n), cl::NDRange(local));
       rt_.queue().finish();
       reportProgress(stage_, done + span * double(first + n) / double(global));
     }
@@ -648,7 +645,8 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
   k.setArg(7, setup.tMax);
   k.setArg(8, out);
   if (packet) k.setArg(9, padded);
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), kLocalSize)), cl::NDRange(kLocalSize));
+  const size_t local = rt.loopGroupSize();
+  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), local)), cl::NDRange(local));
   std::vector<uint8_t> vis(size_t(nv) * o.samples);
   rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, vis.size(), vis.data());
   return vis;
