@@ -220,7 +220,8 @@ if any(p == "transport" for (p, c) in curves):
                 w("| %s | %s | %s | %s | %s | %s | %s |" % (case, label, s, fmt(r["wall_s"]), fmt(r["cpu_s"]),
                                                           fmt(r["err_max"]), fmt(r["err_rms"])))
     w("")
-    w("Work-group size: the transport kernels use a fixed local size of 16 (the `packet` rows compare the "
+    w("Work-group size: the transport kernels run in groups of 16 on a CPU device (64 on a GPU; "
+      "`PRTBAKE_GROUP_SIZE` overrides it; the `packet` rows compare the "
       "packet width, 0 = scalar, 8, 16, at 1024 samples). BVH build quality has no knob: the library always "
       "builds a binned SAH BVH (16 bins, leaves of at most 4 triangles).")
     w("")
