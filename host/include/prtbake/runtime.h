@@ -85,6 +85,13 @@ class Runtime {
   // The group size of the ray-looping kernels: defaultLoopGroupSize, or $PRTBAKE_GROUP_SIZE
   // (1 to maxWorkGroupSize(), for benchmarks; another value is a UsageError).
   size_t loopGroupSize() const { return loopGroupSize_; }
+  // Enqueues such a kernel over work-items first … first + count − 1, in groups of
+  // loopGroupSize() (the last one part-filled: the kernel skips ids past its item count).
+  void enqueueLoop(const cl::Kernel& kernel, size_t count, size_t first = 0) {
+    const size_t n = (count + loopGroupSize_ - 1) / loopGroupSize_ * loopGroupSize_;
+    queue_.enqueueNDRangeKernel(kernel, first ? cl::NDRange(first) : cl::NullRange, cl::NDRange(n),
+                                cl::NDRange(loopGroupSize_));
+  }
 
   // A read-only device buffer holding `data`, copied when the buffer is created (no
   // command and no wait on the queue: a blocking write costs a round trip to the

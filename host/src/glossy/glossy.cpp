@@ -28,8 +28,6 @@ constexpr int kSampleChunk = 1024;
 // Host memory of one block's double sums, at most (the block size shrinks to fit).
 constexpr double kBlockBytes = 64.0 * 1024 * 1024;
 
-size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
-
 // x, y, z, w rows of paddedCount floats (padding: zero weight).
 std::vector<float> soa4(const std::vector<float>& dirs, int& padded) {
   const int n = int(dirs.size() / 4);
@@ -281,7 +279,6 @@ class GlossyBaker {
   // blocked one can hit a surface; the other colour channels then read the first's hits (12
   // bytes a blocked ray, at most detail::kKeptHitBytes).
   void traceGram(size_t nb, size_t traced) {
-    const cl::NDRange global(roundUp(nb, rt_.loopGroupSize())), local(rt_.loopGroupSize());
     gram_.assign(nb * gramCount_, 0.0);
     cl::Buffer gramOut(rt_.context(), CL_MEM_WRITE_ONLY, nb * gramCount_ * 4);
     part_.resize(nb * gramCount_);
@@ -305,7 +302,7 @@ class GlossyBaker {
       gramK_.setArg(a++, c.padded);
       gramK_.setArg(a++, masks_.back());
       gramK_.setArg(a++, maskWords);
-      rt_.queue().enqueueNDRangeKernel(gramK_, cl::NullRange, global, local);
+      rt_.enqueueLoop(gramK_, nb);
       rt_.queue().enqueueReadBuffer(gramOut, CL_TRUE, 0, part_.size() * 4, part_.data());
       reportProgress("glossy", progress_);
       if (keepMask_) {
@@ -331,7 +328,6 @@ class GlossyBaker {
 
   // The bounce sums of the block, per colour channel and chunk.
   void traceBounce(size_t nb) {
-    const cl::NDRange global(roundUp(nb, rt_.loopGroupSize())), local(rt_.loopGroupSize());
     const size_t nbc = size_t(no2_) * ni2_;
     bounceSums_.assign(nb * ch_ * nbc, 0.0);
     cl::Buffer bounceOut(rt_.context(), CL_MEM_WRITE_ONLY, nb * nbc * 4);
@@ -362,7 +358,7 @@ class GlossyBaker {
         bounceK_.setArg(a++, int(chunks_.size()));
         bounceK_.setArg(a++, int(ci));
         bounceK_.setArg(a++, keepHits_ ? (c == 0 ? 1 : 2) : 0);
-        rt_.queue().enqueueNDRangeKernel(bounceK_, cl::NullRange, global, local);
+        rt_.enqueueLoop(bounceK_, nb);
         rt_.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part_.size() * 4, part_.data());
         reportProgress("glossy", progress_);
         for (size_t i = 0; i < nb; ++i)

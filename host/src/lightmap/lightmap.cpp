@@ -263,8 +263,7 @@ std::vector<uint8_t> unocclude(Runtime& rt, const Mesh& mesh, SurfacePoints& pts
   k.setArg(a++, fn);
   k.setArg(a++, cn);
   k.setArg(a++, out);
-  const size_t local = rt.loopGroupSize();
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((n + local - 1) / local * local), cl::NDRange(local));
+  rt.enqueueLoop(k, n);
   std::vector<float> result(n * 4);
   rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, result.size() * 4, result.data());
   for (size_t i = 0; i < n; ++i) {

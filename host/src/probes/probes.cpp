@@ -163,8 +163,7 @@ class ProbeTracer {
         kernel_.setArg(a++, padded);
         kernel_.setArg(a++, backStop);
       }
-      const size_t global = (count + local - 1) / local * local;
-      rt_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
+      rt_.enqueueLoop(kernel_, count);
       rt_.queue().enqueueReadBuffer(outC, CL_FALSE, 0, count * nc * sizeof(float), coeffs.data() + first * nc);
       rt_.queue().enqueueReadBuffer(outB, CL_TRUE, 0, count * sizeof(float), backface.data() + first);
       rays += uint64_t(count) * uint64_t(samples);

@@ -33,8 +33,6 @@ constexpr double kMaskBytes = 256.0 * 1024 * 1024;
 // packet kernel's word holds a packet).
 constexpr int kScalarMaskBits = 16;
 
-size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
-
 // The scene on the device and the kernels over lists of vertices. Each call takes
 // `samples` directions per vertex (the samples-point set of the seed and sampler) in
 // launches of at most detail::kTransportSampleChunk directions and returns means in double.
@@ -279,17 +277,17 @@ class Tracer {
   // about kRaysPerBlock rays (whole work-groups, so the same bits), each waited for and
   // reported as fraction done + span × the part launched.
   void launchVertices(cl::Kernel& k, int nv, int raysPerVertex, double done, double span) {
-    const size_t local = rt_.loopGroupSize(), global = roundUp(size_t(nv), local);
     if (!progressWanted()) {
-      rt_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(global), cl::NDRange(local));
+      rt_.enqueueLoop(k, size_t(nv));
       return;
     }
+    const size_t local = rt_.loopGroupSize();
     const size_t block = std::max(local, kRaysPerBlock / size_t(std::max(raysPerVertex, 1)) / local * local);
-    for (size_t first = 0; first < global; first += block) {
-      const size_t n = std::min(block, global - first);
-      rt_.queue().enqueueNDRangeKernel(k, cl::NDRange(first), cl::NDRange(n), cl::NDRange(local));
+    for (size_t first = 0; first < size_t(nv); first += block) {
+      const size_t n = std::min(block, size_t(nv) - first);
+      rt_.enqueueLoop(k, n, first);
       rt_.queue().finish();
-      reportProgress(stage_, done + span * double(first + n) / double(global));
+      reportProgress(stage_, done + span * double(first + n) / double(nv));
     }
   }
 
@@ -645,8 +643,7 @@ std::vector<uint8_t> traceVisibility(Runtime& rt, const Mesh& mesh, const Transp
   k.setArg(7, setup.tMax);
   k.setArg(8, out);
   if (packet) k.setArg(9, padded);
-  const size_t local = rt.loopGroupSize();
-  rt.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(roundUp(size_t(nv), local)), cl::NDRange(local));
+  rt.enqueueLoop(k, size_t(nv));
   std::vector<uint8_t> vis(size_t(nv) * o.samples);
   rt.queue().enqueueReadBuffer(out, CL_TRUE, 0, vis.size(), vis.data());
   return vis;
