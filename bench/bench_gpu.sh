@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # prtbake on a machine with an NVIDIA GPU beside PoCL's CPU device, in one run of about six
 # minutes: what enumerated (prtbake devices, nvidia-smi, clinfo), the torus knot's transport
-# (shadowed 1024 / 8192 / 65536 rays per vertex, 1024 also in work-groups of 16, 32 and 128
+# (shadowed 1024 / 8192 / 65536 rays per vertex, 1024 also in work-groups of 32, 128 and 256
 # instead of the GPU's 64, interreflected with one bounce; occlusion rays per second from the
-# sidecar's kernel time; GPU coefficients against the CPU's),
+# sidecar's kernel time; GPU coefficients against the CPU's; bench_transport's knot with the
+# scalar kernels at 1, 8 and 32 work-items per vertex),
 # cold and warm `prtbake lut` (empty NVIDIA and PoCL program caches), whole commands (env,
 # lut, prefilter, ibl, glossy transfer with CPCA, mesh transport and preview) on both
 # devices, and the benchmark programs of build/bench on both. Every step runs under
@@ -284,7 +285,7 @@ if [ -s "$KNOT" ]; then
   knot k_cpu_first "shadowed, 64 rays/vertex, first CPU transport (program build)" cpu "$CPU" 90 --samples 64
   knot k_gpu_s1 "shadowed, $S1 rays/vertex" gpu "$GPU" 60 --samples "$S1"
   knot k_gpu_s1b "shadowed, $S1 rays/vertex, again" gpu "$GPU" 60 --samples "$S1"
-  for gs in 16 32 128; do  # the device's default is 64 (Runtime::loopGroupSize); 16 was every device's before
+  for gs in 32 128 256; do  # the device's default is 64 (Runtime::loopGroupSize), 32 work-items to a vertex
     GS=$gs knot "k_gpu_s1_g$gs" "shadowed, $S1 rays/vertex, work-groups of $gs" gpu "$GPU" 60 --samples "$S1"
   done
   knot k_cpu_s1 "shadowed, $S1 rays/vertex" cpu "$CPU" 60 --samples "$S1"
@@ -466,6 +467,10 @@ bench() {  # ID TITLE DEVNAME LIMIT CMD...: one benchmark program, its output in
 }
 bench b_transport_gpu bench_transport gpu 60 "$BIN/bench_transport" --device "$GPU" "${BT[@]}"
 bench b_transport_cpu bench_transport cpu 60 "$BIN/bench_transport" --device "$CPU" "${BT[@]}"
+for lanes in 1 8 32; do  # the scalar kernels' work-items per vertex (TransportOptions::rayLanes; 32 the GPU's default)
+  bench "b_transport_lanes$lanes" "bench_transport --knot, $lanes work-items per vertex" gpu 45 \
+    "$BIN/bench_transport" --device "$GPU" --knot --repeats 3 --samples-large "$S1" --packet-width 0 --ray-lanes "$lanes"
+done
 bench b_env_gpu "bench_env --kernel-only" gpu 45 env PRTBAKE_DEVICE="$GPU" "$BIN/bench_env" --kernel-only
 bench b_env_cpu "bench_env --kernel-only" cpu 45 env PRTBAKE_DEVICE="$CPU" "$BIN/bench_env" --kernel-only
 bench b_preview_gpu bench_preview gpu 45 "$BIN/bench_preview" --device "$GPU" "${BP[@]}"

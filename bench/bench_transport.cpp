@@ -2,9 +2,11 @@
 // scene, 1024 samples) and on a procedural ~200k-triangle bumpy sphere, SH orders 3 and 5.
 //
 // usage: bench_transport [--repeats N] [--samples-large N] [--device SPEC] [--packet-width W] [--knot]
-//                        [--bounces B]
+//                        [--bounces B] [--ray-lanes L]
 // --packet-width: TransportOptions::packetWidth (16, 8, 0 for the scalar kernels, or the
 // default -1: 16 on a CPU device, 0 on a GPU);
+// --ray-lanes: TransportOptions::rayLanes, the scalar kernels' work-items per vertex (1 to 32, or
+// the default -1: 1 on a CPU device, 32 on a GPU);
 // --bounces: B > 0 makes it interreflected with B bounces (--bounce-tolerance 0), rays counting
 // the bounces' too (default 0: shadowed);
 // --knot: the large mesh is the torus knot of bench_embree.sh (204,800 triangles).
@@ -41,10 +43,12 @@ double median(std::vector<double> v) {
 
 int packetWidth = TransportOptions{}.packetWidth;
 int bounces = 0;
+int rayLanes = TransportOptions{}.rayLanes;
 
 void run(Runtime& rt, const std::string& name, const Mesh& mesh, int order, int samples, int repeats) {
   TransportOptions o;
   o.packetWidth = packetWidth;
+  o.rayLanes = rayLanes;
   o.mode = bounces > 0 ? TransportMode::Interreflected : TransportMode::Shadowed;
   o.bounces = bounces;
   o.bounceTolerance = 0;
@@ -83,12 +87,14 @@ int main(int argc, char** argv) {
     else if (a == "--device") device = argv[i + 1];
     else if (a == "--packet-width") packetWidth = std::atoi(argv[i + 1]);
     else if (a == "--bounces") bounces = std::atoi(argv[i + 1]);
+    else if (a == "--ray-lanes") rayLanes = std::atoi(argv[i + 1]);
     else if (a == "--knot") --i;
   }
   Runtime rt(device);
   std::printf("device: %s\n", rt.deviceLabel().c_str());
-  std::printf("%s transport, %d bounces, packet width %d (-1: 16 on a CPU device, 0 on a GPU); median of %d runs (mary.obj), %d (large mesh)\n",
-              bounces > 0 ? "interreflected" : "shadowed", bounces, packetWidth, repeats, std::max(1, repeats / 3));
+  std::printf("%s transport, %d bounces, packet width %d (-1: 16 on a CPU device, 0 on a GPU), ray lanes %d (-1: 1 on a "
+              "CPU device, 32 on a GPU); median of %d runs (mary.obj), %d (large mesh)\n",
+              bounces > 0 ? "interreflected" : "shadowed", bounces, packetWidth, rayLanes, repeats, std::max(1, repeats / 3));
   const std::string maryPath = std::string(PRTBAKE_BENCH_DATA_DIR) + "/meshes/obj/mary.obj";
   try {
     const Mesh mary = loadMesh(maryPath);

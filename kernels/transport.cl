@@ -15,7 +15,8 @@
 // Build options: SH_ORDER (1..8 or more), VISIBILITY (0: unshadowed, no BVH access;
 // 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only), BVH_PACKET (0: the
 // scalar kernels below; 8 or 16: the packet kernels after them instead, which evaluate
-// SH on float8/float16 directions; transport_gather, at the end, in both).
+// SH on float8/float16 directions; transport_gather, at the end, in both), RAY_LANES (the
+// scalar kernels' work-items per vertex: 1, 2, 4, 8, 16 or 32; see "Lanes" below).
 #ifndef BVH_PACKET
 #define BVH_PACKET 0
 #endif
@@ -37,9 +38,15 @@
 #ifndef CHANNELS
 #define CHANNELS 1
 #endif
+#ifndef RAY_LANES
+#define RAY_LANES 1
+#endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
 // Rays per word of the scalar kernels' blocked-ray masks (ushort words, as the packets').
 #define TRANSPORT_MASK_BITS 16
+// The most directions of one launch (detail::kTransportSampleChunk), as 32-bit words of
+// blocked-ray bits: the lane form's mask of a vertex in local memory.
+#define TRANSPORT_LAUNCH_UINTS 32
 // Per-coefficient loops of the packet kernels are unrolled up to order 8, so their
 // accumulators stay in registers instead of a load, add and store per coefficient.
 #if SH_ORDER <= 8
@@ -72,7 +79,34 @@ inline void bounce_gather(int tri, float u, float v, __global const int4* indice
 
 #if !BVH_PACKET
 
-// Direct (bounce 0) transport, one work-item per vertex.
+// Lanes. With RAY_LANES = L > 1 the scalar kernels give each vertex L neighbouring
+// work-items (work-item g: vertex g / L, lane g % L; the host launches L per vertex in
+// groups of a multiple of L): lane j takes rays j, j + L, j + 2L, … and the lanes' sums
+// are added in a fixed tree (lanes_sum), so a vertex's result depends neither on the
+// group size nor on its neighbours. On a GPU this fills the device with a mesh of few
+// vertices, and the L rays a vertex's lanes trace at once are neighbours in the
+// Morton-ordered direction set, so they walk the same nodes. L = 1: one work-item per
+// vertex, its rays in order (no local memory, no barrier).
+//
+// The sum of x over the L lanes of this work-item's vertex, in a fixed tree, returned to
+// every lane. Every work-item of the group calls it (barriers; none under a condition, even a
+// uniform one, which PoCL 3.1 mishandles); red: a float per work-item.
+inline float lanes_sum(float x, __local float* red) {
+#if RAY_LANES > 1
+  const int lid = get_local_id(0), lane = lid % RAY_LANES;
+  red[lid] = x;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int span = RAY_LANES / 2; span > 0; span /= 2) {
+    if (lane < span) red[lid] += red[lid + span];
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  x = red[lid - lane];
+  barrier(CLK_LOCAL_MEM_FENCE);  // red is free again
+#endif
+  return x;
+}
+
+// Direct (bounce 0) transport, one vertex to RAY_LANES work-items.
 // vertexCount, sampleCount: V and N
 // origins:  V × (x, y, z, w), ray origins already offset along the geometric normal;
 //           w = 1 marks a vertex whose hemisphere no triangle can reach (transport.h,
@@ -87,30 +121,46 @@ inline void bounce_gather(int tri, float u, float v, __global const int4* indice
 // blocked:  when maskWords > 0, V × maskWords words, bit s % 16 of word s / 16 set where ray s
 //           is blocked, written for every vertex (for the bounces, which trace the same rays:
 //           transport_bounce)
+// red, bits: local memory of the lane form (RAY_LANES > 1; unused otherwise): a float per
+//           work-item, and TRANSPORT_LAUNCH_UINTS uints per vertex of the group.
 __kernel void transport_direct(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
                                __global float* coeffs, __global float* visible, __global ushort* blocked,
-                               int maskWords) {
-  const int vi = get_global_id(0);
+                               int maskWords, __local float* red, __local uint* bits) {
+  const int vi = get_global_id(0) / RAY_LANES, lane = get_global_id(0) % RAY_LANES;
+#if RAY_LANES == 1
   if (vi >= vertexCount) return;
-  __global const float4* frame = frames + (size_t)vi * 3;
+#endif
+  const bool active = vi < vertexCount;  // the lane form's part-filled last group: no rays, no output
+  __global const float4* frame = frames + (size_t)(active ? vi : 0) * 3;
   float acc[SH_COUNT];
   for (int k = 0; k < SH_COUNT; ++k) acc[k] = 0.0f;
   int seen = 0;
-  if (dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
+#if RAY_LANES > 1
+  __local uint* mine = bits + get_local_id(0) / RAY_LANES * TRANSPORT_LAUNCH_UINTS;  // this vertex's rays
+  for (int w = lane; w < TRANSPORT_LAUNCH_UINTS; w += RAY_LANES) mine[w] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);  // unconditional, as in lanes_sum
+#endif
+  if (active && dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
     const float3 o = origins[vi].xyz;
     const bool trace = origins[vi].w == 0.0f;
-    uint bits = 0;  // the blocked rays of the current word
-    for (int s = 0; s < sampleCount; ++s) {
+#if RAY_LANES == 1
+    uint word = 0;  // the blocked rays of the current mask word
+#endif
+    for (int s = lane; s < sampleCount; s += RAY_LANES) {
       const float3 d = sampling_to_world(frame, dirs[s]);
 #if VISIBILITY
       const bool hit = trace && bvh_occluded(nodes, tris, o, d, tMax);
-      bits |= (uint)hit << (s % TRANSPORT_MASK_BITS);
+#if RAY_LANES > 1
+      if (hit && maskWords > 0) atomic_or(mine + s / 32, 1u << (s % 32));
+#else
+      word |= (uint)hit << (s % TRANSPORT_MASK_BITS);
       if (maskWords > 0 && (s % TRANSPORT_MASK_BITS == TRANSPORT_MASK_BITS - 1 || s == sampleCount - 1)) {
-        blocked[(size_t)vi * maskWords + s / TRANSPORT_MASK_BITS] = (ushort)bits;
-        bits = 0;
+        blocked[(size_t)vi * maskWords + s / TRANSPORT_MASK_BITS] = (ushort)word;
+        word = 0;
       }
+#endif
       if (hit) continue;
 #endif
       ++seen;
@@ -118,11 +168,20 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
       sh_eval(SH_ORDER, d.x, d.y, d.z, y);
       for (int k = 0; k < SH_COUNT; ++k) acc[k] += y[k];
     }
-  } else {
+  } else if (RAY_LANES == 1) {
     for (int w = 0; w < maskWords; ++w) blocked[(size_t)vi * maskWords + w] = 0;  // no normal: no rays
   }
-  for (int k = 0; k < SH_COUNT; ++k) coeffs[(size_t)vi * SH_COUNT + k] = acc[k];
-  visible[vi] = (float)seen;
+#if RAY_LANES > 1
+  barrier(CLK_LOCAL_MEM_FENCE);  // every lane's bits are in
+  for (int w = lane; active && w < maskWords; w += RAY_LANES)
+    blocked[(size_t)vi * maskWords + w] = (ushort)(mine[w / 2] >> (w % 2 * TRANSPORT_MASK_BITS));
+#endif
+  for (int k = 0; k < SH_COUNT; ++k) {
+    const float sum = lanes_sum(acc[k], red);
+    if (active && lane == 0) coeffs[(size_t)vi * SH_COUNT + k] = sum;
+  }
+  const float total = lanes_sum((float)seen, red);
+  if (active && lane == 0) visible[vi] = total;
 }
 
 // Visibility of every (vertex, sample) ray, for the kernel-vs-reference tests.
@@ -142,50 +201,64 @@ __kernel void transport_visibility(int vertexCount, int sampleCount, __global co
 }
 
 
-// One interreflection bounce, one work-item per vertex (none for a vertex that no
-// triangle can reach: origin w = 1, as in transport_direct).
+// One interreflection bounce, one vertex to RAY_LANES work-items as in transport_direct
+// (no rays for a vertex that no triangle can reach: origin w = 1, as there).
 // indices: T × (i0, i1, i2, 0) vertex indices of every mesh triangle
 // albedo:  V × (r, g, b, 0) linear albedo (CHANNELS = 1 reads r)
 // prev:    V × CHANNELS × SH_COUNT, the previous bounce T^(k)
 // next:    V × CHANNELS × SH_COUNT output, the sums of T^(k+1)
 // blocked, maskWords: when maskWords > 0, the direct term's blocked rays (transport_direct) of
 //          these same rays: the others hit nothing and are not traced.
-// hits, hitStart, chunks, chunk: when chunks > 0, the hits of the traced rays are also
-//          written (tri as int bits, u, v: 3 floats each), those of this vertex and launch
-//          (of `chunks`) in sample order from hits + 3 · hitStart[vertex · chunks + chunk],
-//          for transport_gather.
+// hits, hitStart, chunks, chunk: when chunks > 0 (with the masks), the hits of the traced
+//          rays are also written (tri as int bits, u, v: 3 floats each), those of this vertex
+//          and launch (of `chunks`) in sample order from hits + 3 · hitStart[vertex · chunks +
+//          chunk], for transport_gather.
+// red:     as transport_direct's.
 __kernel void transport_bounce(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
                                __global const int4* indices, __global const float4* albedo,
                                __global const float* prev, __global float* next, __global const ushort* blocked,
                                int maskWords, __global float* hits, __global const int* hitStart, int chunks,
-                               int chunk) {
-  const int vi = get_global_id(0);
+                               int chunk, __local float* red) {
+  const int vi = get_global_id(0) / RAY_LANES, lane = get_global_id(0) % RAY_LANES;
+#if RAY_LANES == 1
   if (vi >= vertexCount) return;
-  __global const float4* frame = frames + (size_t)vi * 3;
+#endif
+  const bool active = vi < vertexCount;
+  __global const float4* frame = frames + (size_t)(active ? vi : 0) * 3;
   float acc[CHANNELS * SH_COUNT];
   for (int k = 0; k < CHANNELS * SH_COUNT; ++k) acc[k] = 0.0f;
-  if (dot(frame[2].xyz, frame[2].xyz) > 0.0f && origins[vi].w == 0.0f) {  // w = 1: nothing in reach
+  if (active && dot(frame[2].xyz, frame[2].xyz) > 0.0f && origins[vi].w == 0.0f) {  // w = 1: nothing in reach
     const float3 o = origins[vi].xyz;
     __global float* out = chunks > 0 ? hits + 3 * (size_t)hitStart[(size_t)vi * chunks + chunk] : hits;
-    for (int s = 0; s < sampleCount; ++s) {
+    // Steps of RAY_LANES rays s0 … s0 + RAY_LANES − 1 (within one mask word, or two whole ones),
+    // lane j taking s0 + j; `before` counts the blocked rays before s0.
+    int before = 0;
+    for (int s0 = 0; s0 < sampleCount; s0 += RAY_LANES) {
+      const int s = s0 + lane;
+      uint step = 0xffffffffu >> (32 - RAY_LANES);  // the step's rays to trace
       if (maskWords > 0) {
-        const uint rest = (uint)blocked[(size_t)vi * maskWords + s / TRANSPORT_MASK_BITS] >> (s % TRANSPORT_MASK_BITS);
-        if (rest == 0) {  // no blocked ray left in this word
-          s |= TRANSPORT_MASK_BITS - 1;
-          continue;
-        }
-        if (!(rest & 1u)) continue;
+        __global const ushort* w = blocked + (size_t)vi * maskWords + s0 / TRANSPORT_MASK_BITS;
+        step &= (uint)w[0] >> (s0 % TRANSPORT_MASK_BITS);
+        if (RAY_LANES > TRANSPORT_MASK_BITS && s0 / TRANSPORT_MASK_BITS + 1 < maskWords)
+          step |= (uint)w[1] << TRANSPORT_MASK_BITS;
+        if (step == 0) continue;  // no blocked ray in this step (the whole vertex skips it)
       }
+      const int rank = before + popcount(step & ((1u << lane) - 1u));
+      before += popcount(step);
+      if (s >= sampleCount || !((step >> lane) & 1u)) continue;
       const float3 d = sampling_to_world(frame, dirs[s]);
       float u = 0.0f, v = 0.0f;
       const int tri = bvh_closest(nodes, tris, o, d, tMax, &u, &v);
-      if (chunks > 0) out[0] = as_float(tri), out[1] = u, out[2] = v, out += 3;
+      if (chunks > 0) out[3 * rank] = as_float(tri), out[3 * rank + 1] = u, out[3 * rank + 2] = v;
       bounce_gather(tri, u, v, indices, albedo, prev, acc);
     }
   }
-  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) next[(size_t)vi * CHANNELS * SH_COUNT + k] = acc[k];
+  for (int k = 0; k < CHANNELS * SH_COUNT; ++k) {
+    const float sum = lanes_sum(acc[k], red);
+    if (active && lane == 0) next[(size_t)vi * CHANNELS * SH_COUNT + k] = sum;
+  }
 }
 
 #else  // BVH_PACKET
@@ -341,7 +414,8 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
 #endif  // BVH_PACKET
 
 // A bounce from the hits that transport_bounce or transport_bounce_packet wrote for launch
-// `chunk` (the same rays, the same order, so the same sums): no tracing. Arguments as there.
+// `chunk` (the same rays in the same order, so the same sums; against the lane form's tree of
+// sums, the same up to float rounding): no tracing. Arguments as there.
 __kernel void transport_gather(int vertexCount, __global const float* hits, __global const int* hitStart, int chunks,
                                int chunk, __global const int4* indices, __global const float4* albedo,
                                __global const float* prev, __global float* next) {

@@ -37,7 +37,9 @@ int main() {
   for (int order : {1, 3, 4, kMaxTransportOrder})
     for (bool visibility : {false, true})
       for (int channels : {1, 3})
-        for (int packet : {0, 8, 16}) print("transport.cl", detail::transportOptions(order, visibility, channels, packet));
+        for (int packet : {0, 8, 16})
+          for (int lanes : {1, 8, 32})  // the scalar kernels' work-items per vertex
+            if (packet == 0 || lanes == 1) print("transport.cl", detail::transportOptions(order, visibility, channels, packet, lanes));
   for (int order : {1, 3, kMaxTransportOrder})
     for (int channels : {1, 3})
       for (int light : {1, 3, 8, kMaxShOrder})

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <utility>
 #include <vector>
 
 #include "bvh_types.h"
@@ -193,10 +194,11 @@ TEST_CASE("Kernel vs double reference: interreflection bounces", "[bvh][kernel]"
   o.bounceTolerance = 0;
   o.albedoOverride = std::array<float, 3>{0.9f, 0.5f, 0.2f};
   const auto ref = computeTransportReference(m, o);
-  // The packet kernels and the scalar ones (each tracing only the direct term's blocked rays
-  // in the first bounce and gathering its hits in the second) against every ray in double.
-  for (int width : {16, 0}) {
-    o.packetWidth = width;
+  // The packet kernels and the scalar ones, one and 32 work-items per vertex (each tracing only
+  // the direct term's blocked rays in the first bounce and gathering its hits in the second)
+  // against every ray in double.
+  for (auto [width, lanes] : {std::pair{16, 1}, {0, 1}, {0, 32}}) {
+    o.packetWidth = width, o.rayLanes = lanes;
     const auto r = computeTransport(test::runtime(), m, o);
     REQUIRE(r.channels == 3);
     REQUIRE(r.coeffs.size() == ref.coeffs.size());
@@ -205,8 +207,57 @@ TEST_CASE("Kernel vs double reference: interreflection bounces", "[bvh][kernel]"
     constexpr double kBounceTol = 1e-4;
     double worst = 0;
     for (size_t i = 0; i < r.coeffs.size(); ++i) worst = std::max(worst, std::abs(double(r.coeffs[i]) - ref.coeffs[i]));
-    INFO("packet width " << width << ": max |kernel - reference| = " << worst);
+    INFO("packet width " << width << ", lanes " << lanes << ": max |kernel - reference| = " << worst);
     CHECK(worst < kBounceTol);
+  }
+}
+
+TEST_CASE("The scalar kernels' lanes trace the same rays, and a vertex's sums are its own", "[bvh][kernel]") {
+  DeviceInfo cpu, gpu;
+  cpu.type = "cpu", gpu.type = "gpu";
+  CHECK(detail::rayLanesFor(cpu, 0, -1) == 1);
+  CHECK(detail::rayLanesFor(gpu, 0, -1) == 32);
+  CHECK(detail::rayLanesFor(gpu, 0, 4) == 4);
+  CHECK(detail::rayLanesFor(gpu, 16, 32) == 1);  // the packet kernels take none
+  // L work-items per vertex, lane j taking rays j, j + L, …, the masks of blocked rays
+  // assembled across lanes and the bounce's hits written at their rank: against one
+  // work-item per vertex, the same rays traced (counts equal, so the masks agree) and the
+  // same sums up to float summation order (1e-5, as for the packets above). 1030 samples: two
+  // launches, neither a multiple of 32 rays; two bounces: the first traces the blocked rays and
+  // keeps their hits, the second gathers them.
+  const Mesh m = occludingScene();
+  TransportOptions o;
+  o.samples = 1030;
+  o.packetWidth = 0;
+  o.bounces = 2, o.bounceTolerance = 0;
+  o.albedoOverride = std::array<float, 3>{0.8f, 0.6f, 0.3f};
+  constexpr double kSumOrderTol = 1e-5;
+  for (TransportMode mode : {TransportMode::Shadowed, TransportMode::Interreflected}) {
+    o.mode = mode, o.rayLanes = 1;
+    const auto one = computeTransport(test::runtime(), m, o);
+    for (int lanes : {2, 8, 32}) {
+      o.rayLanes = lanes;
+      const auto r = computeTransport(test::runtime(), m, o);
+      INFO("mode " << int(mode) << ", lanes " << lanes);
+      CHECK(r.rays == one.rays);
+      REQUIRE(r.coeffs.size() == one.coeffs.size());
+      double worst = 0;
+      for (size_t i = 0; i < r.coeffs.size(); ++i) worst = std::max(worst, std::abs(double(r.coeffs[i]) - one.coeffs[i]));
+      INFO("max |lanes - one| = " << worst);
+      CHECK(worst < kSumOrderTol);
+    }
+  }
+  // A vertex's lanes sum in a fixed tree of their own: a range of vertices gives the same
+  // bytes as those vertices of the whole mesh (ids offset within the groups).
+  o.mode = TransportMode::Shadowed, o.rayLanes = 32, o.samples = 100;
+  const auto whole = computeTransport(test::runtime(), m, o);
+  o.firstVertex = 5, o.vertexCount = 40;
+  const auto part = computeTransport(test::runtime(), m, o);
+  REQUIRE(part.coeffs.size() == 40 * 9);
+  CHECK(std::memcmp(part.coeffs.data(), whole.coeffs.data() + 5 * 9, part.coeffs.size() * sizeof(float)) == 0);
+  for (int bad : {0, 3, 64}) {
+    o.rayLanes = bad;
+    CHECK_THROWS_AS(computeTransport(test::runtime(), m, o), UsageError);
   }
 }
 
@@ -275,10 +326,11 @@ TEST_CASE("The ray-looping kernels' group size follows the device, and every siz
   CHECK(defaultLoopGroupSize(gpu) == 64);
   CHECK(defaultLoopGroupSize(other) == 64);
   CHECK(test::runtime().loopGroupSize() == 16);
-  // A GPU's group size (and an odd one) on this CPU device: each work-item's sums are its own,
+  // A GPU's group size (and an odd one) on this CPU device: each vertex's sums are its own,
   // so the coefficients are the same bytes, direct and with two bounces (the blocked-ray masks
-  // and kept hits indexed by vertex), packets and scalar kernels; the scene's vertex count is
-  // no multiple of either size, so the last group is part-filled.
+  // and kept hits indexed by vertex), packets and scalar kernels (one or 32 work-items per
+  // vertex: groups of 64 and 32, as 7 rounds up to the lanes); the scene's vertex count is no
+  // multiple of either size, so the last group is part-filled.
   const Mesh m = occludingScene();
   REQUIRE(m.vertexCount() % 64 != 0);
   TransportOptions o;
@@ -289,10 +341,10 @@ TEST_CASE("The ray-looping kernels' group size follows the device, and every siz
     Runtime& rt = *grouped;
     CHECK(rt.loopGroupSize() == size_t(std::atoi(size)));
     for (TransportMode mode : {TransportMode::Shadowed, TransportMode::Interreflected})
-      for (int width : {16, 0}) {
-        o.mode = mode, o.bounces = 2, o.bounceTolerance = 0, o.packetWidth = width;
+      for (auto [width, lanes] : {std::pair{16, 1}, {0, 1}, {0, 32}}) {
+        o.mode = mode, o.bounces = 2, o.bounceTolerance = 0, o.packetWidth = width, o.rayLanes = lanes;
         const auto a = computeTransport(test::runtime(), m, o), b = computeTransport(rt, m, o);
-        INFO("group size " << size << ", mode " << int(mode) << ", packet width " << width);
+        INFO("group size " << size << ", mode " << int(mode) << ", packet width " << width << ", lanes " << lanes);
         REQUIRE(a.coeffs.size() == b.coeffs.size());
         CHECK(std::memcmp(a.coeffs.data(), b.coeffs.data(), a.coeffs.size() * sizeof(float)) == 0);
         CHECK(a.rays == b.rays);

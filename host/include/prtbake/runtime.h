@@ -17,6 +17,7 @@
 #endif
 #include <CL/opencl.hpp>
 
+#include <algorithm>
 #include <map>
 #include <mutex>
 #include <string>
@@ -85,12 +86,18 @@ class Runtime {
   // The group size of the ray-looping kernels: defaultLoopGroupSize, or $PRTBAKE_GROUP_SIZE
   // (1 to maxWorkGroupSize(), for benchmarks; another value is a UsageError).
   size_t loopGroupSize() const { return loopGroupSize_; }
-  // Enqueues such a kernel over work-items first … first + count − 1, in groups of
-  // loopGroupSize() (the last one part-filled: the kernel skips ids past its item count).
-  void enqueueLoop(const cl::Kernel& kernel, size_t count, size_t first = 0) {
-    const size_t n = (count + loopGroupSize_ - 1) / loopGroupSize_ * loopGroupSize_;
-    queue_.enqueueNDRangeKernel(kernel, first ? cl::NDRange(first) : cl::NullRange, cl::NDRange(n),
-                                cl::NDRange(loopGroupSize_));
+  // The group size of such a kernel that gives each item `lanes` work-items (a power of two
+  // up to 32): loopGroupSize() rounded up to a multiple of lanes, within the device's limit.
+  size_t loopLocalSize(size_t lanes = 1) const {
+    return std::min((loopGroupSize_ + lanes - 1) / lanes * lanes, std::max(maxWorkGroupSize() / lanes, size_t(1)) * lanes);
+  }
+  // Enqueues such a kernel over items first … first + count − 1, `lanes` work-items each
+  // (item i: work-items lanes·i … lanes·i + lanes − 1), in groups of loopLocalSize(lanes) (the
+  // last one part-filled: the kernel skips ids past its item count).
+  void enqueueLoop(const cl::Kernel& kernel, size_t count, size_t first = 0, size_t lanes = 1) {
+    const size_t local = loopLocalSize(lanes), n = (count * lanes + local - 1) / local * local;
+    queue_.enqueueNDRangeKernel(kernel, first ? cl::NDRange(first * lanes) : cl::NullRange, cl::NDRange(n),
+                                cl::NDRange(local));
   }
 
   // A read-only device buffer holding `data`, copied when the buffer is created (no

@@ -58,12 +58,17 @@ struct TransportOptions {
   // agree up to float summation order. −1: by the device (detail::packetWidthFor: 16 on a
   // CPU, 0 on a GPU).
   int packetWidth = -1;
+  // Work-items per vertex of the scalar kernels (packetWidth 0): 1, 2, 4, 8, 16 or 32, each
+  // taking every rayLanes-th ray, their sums added in a fixed tree (so a vertex's result does
+  // not depend on the work-group size or on other vertices). −1: by the device
+  // (detail::rayLanesFor: 1 on a CPU, 32 elsewhere). Ignored by the packet kernels.
+  int rayLanes = -1;
   // Interreflected only: also return each bounce's T^(k) (TransportResult::bounceCoeffs).
   bool keepBounces = false;
   // computeTransport only: the vertex range [firstVertex, firstVertex + vertexCount)
   // to compute (vertexCount unset: up to the last vertex), traced against the whole
   // mesh. Each vertex's rays depend only on its global index (frame rotation) and the
-  // seed, and one work-item computes one vertex, so the range's coefficients are
+  // seed, and a vertex's own work-items compute it, so the range's coefficients are
   // bit-identical to the same vertices of a full run on the same device. An empty range
   // returns an empty result. Interreflected transport needs every vertex's previous
   // bounce, so it accepts only the whole mesh (UsageError otherwise).

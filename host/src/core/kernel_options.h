@@ -20,8 +20,9 @@ namespace prtbake::detail {
 std::string envProjectOptions(int order, int vectorWidth, EnvStorage storage);
 // lut.cl
 std::string lutOptions(const LutOptions& o);
-// transport.cl: SH order, visibility tested, channels (1 or 3), packet width (0, 8, 16).
-std::string transportOptions(int order, bool visibility, int channels, int packetWidth);
+// transport.cl: SH order, visibility tested, channels (1 or 3), packet width (0, 8, 16), the
+// scalar kernels' work-items per vertex (TransportOptions::rayLanes).
+std::string transportOptions(int order, bool visibility, int channels, int packetWidth, int rayLanes = 1);
 // preview.cl: transport order and channels, lighting order, SH or image background.
 std::string previewMeshOptions(int order, int channels, int lightOrder, bool shBackground);
 // glossy.cl: output and input SH orders (the kernel's basis goes to the larger), visibility.

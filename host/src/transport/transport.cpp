@@ -32,6 +32,10 @@ constexpr double kMaskBytes = 256.0 * 1024 * 1024;
 // Rays per 16-bit mask word of the scalar kernels (TRANSPORT_MASK_BITS in transport.cl; a
 // packet kernel's word holds a packet).
 constexpr int kScalarMaskBits = 16;
+// The bytes of one launch's mask of a vertex in the lane form's local memory
+// (TRANSPORT_LAUNCH_UINTS uints).
+constexpr size_t kLaunchMaskBytes = 32 * 4;
+static_assert(detail::kTransportSampleChunk <= kLaunchMaskBytes * 8, "a launch's rays fit the lane form's mask");
 
 // The scene on the device and the kernels over lists of vertices. Each call takes
 // `samples` directions per vertex (the samples-point set of the seed and sampler) in
@@ -82,6 +86,11 @@ class Tracer {
       cl::Kernel k = kernel("transport_direct", "transport_direct_packet", 1);
       k.setArg(8, out);
       k.setArg(9, vis);
+      if (o_.packetWidth == 0) {  // the lane form's local memory (transport.cl)
+        const size_t local = rt_.loopLocalSize(size_t(o_.rayLanes));
+        k.setArg(12, cl::Local(local * 4));
+        k.setArg(13, cl::Local(local / size_t(o_.rayLanes) * kLaunchMaskBytes));
+      }
       const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size()), partSeen(seen.size());
       // With the masks: the blocked rays of each vertex in each launch (chunk-major), counted
@@ -135,6 +144,7 @@ class Tracer {
       k.setArg(9, albedo_);
       k.setArg(10, prev);
       k.setArg(11, out);
+      if (o_.packetWidth == 0) k.setArg(18, cl::Local(rt_.loopLocalSize(size_t(o_.rayLanes)) * 4));
       const bool reuse = !blocked_.empty() && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       const bool record = reuse && more && hitChunks_ > 0 && !hitsWritten_;
       const bool replay = reuse && hitChunks_ > 0 && hitsWritten_;
@@ -188,7 +198,7 @@ class Tracer {
   template <class Collect>
   void gatherHits(int nv, int channels, const cl::Buffer& prev, const cl::Buffer& out, Collect&& collect) {
     cl::Kernel g = rt_.kernel("transport.cl", "transport_gather",
-                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
+                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth, o_.rayLanes));
     g.setArg(0, nv);
     g.setArg(1, hits_);
     g.setArg(2, hitStart_);
@@ -217,7 +227,7 @@ class Tracer {
   cl::Kernel kernel(const char* scalarName, const char* packetName, int channels) {
     const bool packet = o_.packetWidth > 0;
     cl::Kernel k = rt_.kernel("transport.cl", packet ? packetName : scalarName,
-                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth));
+                              detail::transportOptions(o_.order, visibility_, channels, o_.packetWidth, o_.rayLanes));
     k.setArg(2, origins_);
     k.setArg(3, frames_);
     k.setArg(5, nodes_);
@@ -268,24 +278,24 @@ class Tracer {
       k.setArg(maskArg + 1, mask == MaskUse::None ? 0 : words);
       before(chunk);
       const int chunks = (samples + detail::kTransportSampleChunk - 1) / detail::kTransportSampleChunk;
-      launchVertices(k, nv, n, double(chunk) / chunks, 1.0 / chunks);
+      launchVertices(k, nv, n, double(chunk) / chunks, 1.0 / chunks, packet ? 1 : size_t(o_.rayLanes));
       collect(chunk, n);
     }
   }
 
-  // One launch of `k` over the nv vertices; with a progress hook (prtbake/progress.h), blocks of
-  // about kRaysPerBlock rays (whole work-groups, so the same bits), each waited for and
-  // reported as fraction done + span × the part launched.
-  void launchVertices(cl::Kernel& k, int nv, int raysPerVertex, double done, double span) {
+  // One launch of `k` over the nv vertices, `lanes` work-items each; with a progress hook
+  // (prtbake/progress.h), blocks of about kRaysPerBlock rays, each waited for and reported as
+  // fraction done + span × the part launched.
+  void launchVertices(cl::Kernel& k, int nv, int raysPerVertex, double done, double span, size_t lanes = 1) {
     if (!progressWanted()) {
-      rt_.enqueueLoop(k, size_t(nv));
+      rt_.enqueueLoop(k, size_t(nv), 0, lanes);
       return;
     }
     const size_t local = rt_.loopGroupSize();
     const size_t block = std::max(local, kRaysPerBlock / size_t(std::max(raysPerVertex, 1)) / local * local);
     for (size_t first = 0; first < size_t(nv); first += block) {
       const size_t n = std::min(block, size_t(nv) - first);
-      rt_.enqueueLoop(k, n, first);
+      rt_.enqueueLoop(k, n, first, lanes);
       rt_.queue().finish();
       reportProgress(stage_, done + span * double(first + n) / double(nv));
     }
@@ -472,9 +482,10 @@ void standardErrors(const std::vector<double>& t0, const std::vector<double>& vi
 
 }  // namespace
 
-std::string detail::transportOptions(int order, bool visibility, int channels, int packetWidth) {
+std::string detail::transportOptions(int order, bool visibility, int channels, int packetWidth, int rayLanes) {
   return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
-         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packetWidth);
+         " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packetWidth) +
+         (rayLanes > 1 ? " -DRAY_LANES=" + std::to_string(rayLanes) : "");
 }
 
 namespace {
@@ -488,7 +499,7 @@ void bake(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail
   const bool visibility = o.mode != TransportMode::Unshadowed;
   // The direct term's program is built (or read from the caches) while the BVH is set up.
   auto program = std::async(std::launch::async, [&rt, &o, visibility] {
-    rt.program("transport.cl", detail::transportOptions(o.order, visibility, 1, o.packetWidth));
+    rt.program("transport.cl", detail::transportOptions(o.order, visibility, 1, o.packetWidth, o.rayLanes));
   });
   for (uint32_t v : range) r.verticesWithoutNormal += hasNormal(setup, v) ? 0 : 1;
   Tracer tracer(rt, mesh, o, setup, visibility, r, bounceSource == nullptr);
@@ -536,11 +547,13 @@ void bake(Runtime& rt, const Mesh& mesh, const TransportOptions& o, const detail
   r.kernelSeconds = secondsSince(tKernel);
 }
 
-// The options checked, with the packet width the device takes (detail::packetWidthFor).
+// The options checked, with the packet width and lanes the device takes (detail::packetWidthFor,
+// detail::rayLanesFor).
 TransportOptions checkedFor(const Runtime& rt, const TransportOptions& options) {
   detail::checkTransportOptions(options);
   TransportOptions o = options;
   o.packetWidth = detail::packetWidthFor(rt.info(), o.packetWidth);
+  o.rayLanes = detail::rayLanesFor(rt.info(), o.packetWidth, o.rayLanes);
   return o;
 }
 

@@ -55,6 +55,11 @@ RaySetup makePointRaySetup(const Mesh& mesh, const SurfacePoints& points, const 
 // knot of bench_transport traced 0.22 G rays/s in packets of 16 and 0.75 G rays/s with the
 // scalar kernels (bench/results/gpu.md).
 int packetWidthFor(const DeviceInfo& device, int requested);
+// The scalar kernels' work-items per vertex (TransportOptions::rayLanes): `requested` when
+// ≥ 1; else 1 on a CPU device (its scalar kernels run a work-item's rays in turn anyway) and
+// 32 on any other (a GPU's warp: a mesh of few vertices still fills the device, and a warp's
+// rays are neighbours of one vertex). 1 for the packet kernels.
+int rayLanesFor(const DeviceInfo& device, int packetWidth, int requested);
 // The BVH's nodes on the device: the 4-wide tree for the packet kernels (`wide`), else
 // the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
 // no ray enters.
