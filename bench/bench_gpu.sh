@@ -6,7 +6,7 @@
 # sidecar's kernel time; GPU coefficients against the CPU's; bench_transport's knot with the
 # scalar kernels at 1, 8 and 32 work-items per vertex),
 # cold and warm `prtbake lut` (empty NVIDIA and PoCL program caches), whole commands (env,
-# lut, prefilter, ibl, glossy transfer with CPCA, mesh transport and preview) on both
+# lut, prefilter, ibl, glossy transfer with CPCA, mesh transport and preview, a probe grid) on both
 # devices, and the benchmark programs of build/bench on both. Every step runs under
 # `timeout` and within an overall budget (a step that hangs is recorded as TIMEOUT, one that
 # the budget no longer allows as SKIPPED); a failing step is recorded with its error line and
@@ -402,6 +402,7 @@ cli prefilter 2 30 prefilter "$HDR" -o @OUT@.ktx2
 cli mary 2 30 transport "$MARY" -o @OUT@.npy
 cli glossy 2 45 transport "$MARY" -o @OUT@.npy --transfer matrix "${GLOSSY[@]}"
 cli ibl 1 45 ibl "$HDR" -o @OUT@ "${IBL[@]}"
+cli probes 2 45 probes "$MARY" -o @OUT@ --resolution 16,8,16 --samples 4096 --bounces 0 --env "$HDR"
 row=""
 for dn in gpu cpu; do
   dev=$GPU; [ $dn = cpu ] && dev=$CPU
@@ -469,7 +470,7 @@ bench b_transport_gpu bench_transport gpu 60 "$BIN/bench_transport" --device "$G
 bench b_transport_cpu bench_transport cpu 60 "$BIN/bench_transport" --device "$CPU" "${BT[@]}"
 for lanes in 1 8 32; do  # the scalar kernels' work-items per vertex (TransportOptions::rayLanes; 32 the GPU's default)
   bench "b_transport_lanes$lanes" "bench_transport --knot, $lanes work-items per vertex" gpu 45 \
-    "$BIN/bench_transport" --device "$GPU" --knot --repeats 3 --samples-large "$S1" --packet-width 0 --ray-lanes "$lanes"
+    "$BIN/bench_transport" --device "$GPU" --knot "${BT[@]}" --packet-width 0 --ray-lanes "$lanes"
 done
 bench b_env_gpu "bench_env --kernel-only" gpu 45 env PRTBAKE_DEVICE="$GPU" "$BIN/bench_env" --kernel-only
 bench b_env_cpu "bench_env --kernel-only" cpu 45 env PRTBAKE_DEVICE="$CPU" "$BIN/bench_env" --kernel-only

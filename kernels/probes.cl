@@ -10,7 +10,8 @@
 // Build options: PROBE_ORDER (the probes' SH order), ENV_ORDER (≥ PROBE_ORDER: the
 // environment's; the directions' SH are evaluated once to this order and the first
 // PROBE_ORDER² serve the projection), BVH_PACKET (0: one ray at a time over the binary BVH;
-// 16: the packet kernel over the wide one, a probe's rays 16 at a time).
+// 16: the packet kernel over the wide one, a probe's rays 16 at a time), RAY_LANES (the
+// one-ray kernel's work-items per probe: lanes.clh).
 #ifndef BVH_PACKET
 #define BVH_PACKET 0
 #endif
@@ -22,6 +23,7 @@
 #include "sh.clh"
 #include "bvh.clh"
 #include "sampling.clh"
+#include "lanes.clh"
 
 #ifndef PROBE_ORDER
 #define PROBE_ORDER 3
@@ -42,21 +44,25 @@
 // radiance: vertices × (r, g, b, 0), the surfaces' exit radiance (lit = 0: surfaces black)
 // coeffs:   probes × PROBE_COUNT × 3 output, coefficient-major (i, then r g b)
 // backface: probes output, the back faces' summed weight
+// red:      the lane form's local memory (RAY_LANES > 1; lanes.clh), a float per work-item
 #if !BVH_PACKET
 __kernel void probes_trace(int probeCount, int sampleCount, __global const float4* origins,
                            __global const float4* frames, __global const float4* dirs,
                            __global const BvhNode* nodes, __global const float4* tris, float tMax,
                            __global const float4* env, __global const int4* indices,
                            __global const float4* faceNormals, __global const float4* radiance, int lit,
-                           __global float* coeffs, __global float* backface) {
-  const int pi = get_global_id(0);
+                           __global float* coeffs, __global float* backface, __local float* red) {
+  const int pi = get_global_id(0) / RAY_LANES, lane = get_global_id(0) % RAY_LANES;
+#if RAY_LANES == 1
   if (pi >= probeCount) return;
-  __global const float4* frame = frames + (size_t)pi * 3;
-  const float3 o = origins[pi].xyz;
+#endif
+  const bool active = pi < probeCount;  // the lane form's part-filled last group: no rays, no output
+  __global const float4* frame = frames + (size_t)(active ? pi : 0) * 3;
+  const float3 o = origins[active ? pi : 0].xyz;
   float3 acc[PROBE_COUNT];
   for (int k = 0; k < PROBE_COUNT; ++k) acc[k] = (float3)(0.0f);
   float back = 0.0f;
-  for (int s = 0; s < sampleCount; ++s) {
+  for (int s = lane; active && s < sampleCount; s += RAY_LANES) {
     const float4 dl = dirs[s];
     const float3 d = sampling_to_world(frame, dl);
     float u = 0.0f, v = 0.0f;
@@ -78,8 +84,12 @@ __kernel void probes_trace(int probeCount, int sampleCount, __global const float
     for (int k = 0; k < PROBE_COUNT; ++k) acc[k] += y[k] * L;
   }
   __global float* out = coeffs + (size_t)pi * PROBE_COUNT * 3;
-  for (int k = 0; k < PROBE_COUNT; ++k) out[3 * k] = acc[k].x, out[3 * k + 1] = acc[k].y, out[3 * k + 2] = acc[k].z;
-  backface[pi] = back;
+  for (int k = 0; k < PROBE_COUNT; ++k) {
+    const float r = lanes_sum(acc[k].x, red), g = lanes_sum(acc[k].y, red), b = lanes_sum(acc[k].z, red);
+    if (active && lane == 0) out[3 * k] = r, out[3 * k + 1] = g, out[3 * k + 2] = b;
+  }
+  back = lanes_sum(back, red);
+  if (active && lane == 0) backface[pi] = back;
 }
 
 #else  // BVH_PACKET

@@ -16,7 +16,7 @@
 // 1: shadowed), CHANNELS (1 grey, 3 RGB: bounce kernel only), BVH_PACKET (0: the
 // scalar kernels below; 8 or 16: the packet kernels after them instead, which evaluate
 // SH on float8/float16 directions; transport_gather, at the end, in both), RAY_LANES (the
-// scalar kernels' work-items per vertex: 1, 2, 4, 8, 16 or 32; see "Lanes" below).
+// scalar kernels' work-items per vertex: 1, 2, 4, 8, 16 or 32; lanes.clh).
 #ifndef BVH_PACKET
 #define BVH_PACKET 0
 #endif
@@ -28,6 +28,7 @@
 #include "sh.clh"
 #include "bvh.clh"
 #include "sampling.clh"
+#include "lanes.clh"
 
 #ifndef SH_ORDER
 #define SH_ORDER 3
@@ -37,9 +38,6 @@
 #endif
 #ifndef CHANNELS
 #define CHANNELS 1
-#endif
-#ifndef RAY_LANES
-#define RAY_LANES 1
 #endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
 // Rays per word of the scalar kernels' blocked-ray masks (ushort words, as the packets').
@@ -78,33 +76,6 @@ inline void bounce_gather(int tri, float u, float v, __global const int4* indice
 }
 
 #if !BVH_PACKET
-
-// Lanes. With RAY_LANES = L > 1 the scalar kernels give each vertex L neighbouring
-// work-items (work-item g: vertex g / L, lane g % L; the host launches L per vertex in
-// groups of a multiple of L): lane j takes rays j, j + L, j + 2L, … and the lanes' sums
-// are added in a fixed tree (lanes_sum), so a vertex's result depends neither on the
-// group size nor on its neighbours. On a GPU this fills the device with a mesh of few
-// vertices, and the L rays a vertex's lanes trace at once are neighbours in the
-// Morton-ordered direction set, so they walk the same nodes. L = 1: one work-item per
-// vertex, its rays in order (no local memory, no barrier).
-//
-// The sum of x over the L lanes of this work-item's vertex, in a fixed tree, returned to
-// every lane. Every work-item of the group calls it (barriers; none under a condition, even a
-// uniform one, which PoCL 3.1 mishandles); red: a float per work-item.
-inline float lanes_sum(float x, __local float* red) {
-#if RAY_LANES > 1
-  const int lid = get_local_id(0), lane = lid % RAY_LANES;
-  red[lid] = x;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  for (int span = RAY_LANES / 2; span > 0; span /= 2) {
-    if (lane < span) red[lid] += red[lid + span];
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  x = red[lid - lane];
-  barrier(CLK_LOCAL_MEM_FENCE);  // red is free again
-#endif
-  return x;
-}
 
 // Direct (bounce 0) transport, one vertex to RAY_LANES work-items.
 // vertexCount, sampleCount: V and N

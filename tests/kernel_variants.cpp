@@ -57,7 +57,9 @@ int main() {
   print("prefilter.cl", detail::prefilterSampledOptions());
   for (int order : {2, 3})
     for (int env = order; env <= kMaxTransportOrder; ++env)
-      for (int packet : {0, 16}) print("probes.cl", detail::probesOptions(order, env, packet));
+      for (int packet : {0, 16})
+        for (int lanes : {1, 32})
+          if (packet == 0 || lanes == 1) print("probes.cl", detail::probesOptions(order, env, packet, lanes));
   print("lightmap.cl", "");
   print("sh_eval.cl", "");
   return 0;

@@ -330,8 +330,17 @@ TEST_CASE("prtbake probes: bad grids get one line and no output, and a job write
 }
 
 TEST_CASE("Probes: the packet kernel and the one-ray kernel agree", "[probes]") {
-  // A room with a solid block in it (moved and filled probes too), lit with one bounce.
+  // A room open to the sky (no ceiling: a closed one would leave every coefficient 0, and the
+  // comparisons below empty) with a solid block in it (moved and filled probes too), lit with
+  // one bounce.
   Mesh scene = makeBox(-1, 1, true, 0.6);
+  std::vector<uint32_t> walls;
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    bool ceiling = true;
+    for (int c = 0; c < 3; ++c) ceiling = ceiling && scene.positions[3 * scene.indices[3 * t + c] + 1] > 0.99f;
+    if (!ceiling) walls.insert(walls.end(), &scene.indices[3 * t], &scene.indices[3 * t] + 3);
+  }
+  scene.indices = walls;
   appendMesh(scene, makeBox(-0.35, 0.25, false, 0.8));
   ProbeOptions o;
   o.resolution = std::array<int, 3>{4, 3, 5};
@@ -356,7 +365,21 @@ TEST_CASE("Probes: the packet kernel and the one-ray kernel agree", "[probes]") 
   for (size_t i = 0; i < a.coeffs.size(); ++i)
     worst = std::max(worst, double(std::abs(a.coeffs[i] - b.coeffs[i]))), largest = std::max(largest, double(std::abs(a.coeffs[i])));
   INFO("largest |difference| " << worst << " of " << largest);
+  CHECK(largest > 0.1);  // the sky reaches the probes
   CHECK(worst <= 1e-5 * largest);
+  // 32 work-items per probe (a GPU's default, kernels/lanes.clh): the same rays, their sums in a
+  // fixed tree, so against one work-item the same tolerance, and any group size the same bytes.
+  o.packetWidth = 0, o.rayLanes = 32;
+  const ProbeGridResult c = computeProbeGrid(test::runtime(), scene, sky(), o);
+  CHECK(computeProbeGrid(*grouped, scene, sky(), o).coeffs == c.coeffs);
+  REQUIRE(c.coeffs.size() == a.coeffs.size());
+  CHECK(c.state == a.state);
+  double worstLanes = 0;
+  for (size_t i = 0; i < a.coeffs.size(); ++i) worstLanes = std::max(worstLanes, double(std::abs(a.coeffs[i] - c.coeffs[i])));
+  INFO("32 lanes: largest |difference| " << worstLanes << " of " << largest);
+  CHECK(worstLanes <= 1e-5 * largest);
+  o.rayLanes = 3;
+  CHECK_THROWS_AS(computeProbeGrid(test::runtime(), scene, sky(), o), UsageError);
 }
 
 TEST_CASE("A split probes job: shards then merge give the whole run's bytes", "[probes][cli]") {

@@ -82,6 +82,9 @@ struct ProbeOptions {
   // Rays per packet: 16 (a probe's rays 16 at a time over the wide BVH) or 0 (one at a time;
   // the results agree up to float summation order); −1: by the device, as for the transport.
   int packetWidth = -1;
+  // Work-items per probe of the one-ray kernel, as TransportOptions::rayLanes (−1: 1 on a CPU
+  // device, 32 elsewhere).
+  int rayLanes = -1;
 };
 
 struct ProbeGridResult {

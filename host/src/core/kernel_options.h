@@ -34,6 +34,6 @@ std::string glossyPreviewOptions(int orderOut, int lightOrder, bool shBackground
 std::string prefilterCutOptions(PrefilterLobe lobe, int vectorWidth);
 std::string prefilterSampledOptions();
 // probes.cl: the probes' SH order, the environment's, and the packet width (0 or 16).
-std::string probesOptions(int order, int envOrder, int packetWidth);
+std::string probesOptions(int order, int envOrder, int packetWidth, int rayLanes = 1);
 
 }  // namespace prtbake::detail

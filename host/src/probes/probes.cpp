@@ -77,6 +77,7 @@ void checkOptions(const ProbeOptions& o) {
   if (o.bounces < 0 || o.bounces > 16) throw UsageError("--bounces", "expected 0..16");
   if (o.packetWidth != -1 && o.packetWidth != 0 && o.packetWidth != 16)
     throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0 or 16, or -1: by the device)");
+  detail::checkRayLanes(o.rayLanes);
   if (o.transportSamples < 1 || o.transportSamples > (1 << 20)) throw UsageError("--transport-samples", "expected 1..1048576");
   if (!(o.backfaceLimit > 0 && o.backfaceLimit <= 1)) throw UsageError("--backface-limit", "expected a fraction in (0, 1]");
   if (!(o.relocateFraction >= 0 && o.relocateFraction <= 1)) throw UsageError("--relocate", "expected a fraction in [0, 1]");
@@ -87,8 +88,8 @@ void checkOptions(const ProbeOptions& o) {
 class ProbeTracer {
  public:
   ProbeTracer(Runtime& rt, const Mesh& mesh, const Bvh& bvh, const ShCoeffs& env, int order, int envOrder,
-              const std::vector<float>& radiance, int packetWidth)
-      : rt_(rt), order_(order), packet_(packetWidth) {
+              const std::vector<float>& radiance, int packetWidth, int rayLanes)
+      : rt_(rt), order_(order), packet_(packetWidth), lanes_(size_t(rayLanes)) {
     nodes_ = detail::uploadBvhNodes(rt, bvh, packet_ > 0);
     tris_ = detail::uploadBvhTriangles(rt, bvh, packet_ > 0);
     std::vector<float> envRgb(size_t(envOrder) * envOrder * 4, 0.0f);
@@ -115,7 +116,7 @@ class ProbeTracer {
     lit_ = !radiance.empty();
     radiance_ = rt.upload(lit_ ? radiance : std::vector<float>(4, 0.0f));
     kernel_ = rt.kernel("probes.cl", packet_ ? "probes_trace_packet" : "probes_trace",
-                        detail::probesOptions(order, envOrder, packet_));
+                        detail::probesOptions(order, envOrder, packet_, int(lanes_)));
     // Rays start at the probe and reach past the scene from anywhere in the grid.
     tMax_ = 1e30f;
   }
@@ -162,8 +163,10 @@ class ProbeTracer {
       if (packet_) {
         kernel_.setArg(a++, padded);
         kernel_.setArg(a++, backStop);
+      } else {
+        kernel_.setArg(a++, cl::Local(rt_.loopLocalSize(lanes_) * sizeof(float)));  // lanes.clh
       }
-      rt_.enqueueLoop(kernel_, count);
+      rt_.enqueueLoop(kernel_, count, 0, lanes_);
       rt_.queue().enqueueReadBuffer(outC, CL_FALSE, 0, count * nc * sizeof(float), coeffs.data() + first * nc);
       rt_.queue().enqueueReadBuffer(outB, CL_TRUE, 0, count * sizeof(float), backface.data() + first);
       rays += uint64_t(count) * uint64_t(samples);
@@ -174,6 +177,7 @@ class ProbeTracer {
  private:
   Runtime& rt_;
   int order_, packet_;
+  size_t lanes_;  // work-items per probe of the one-ray kernel
   bool lit_ = false;
   float tMax_ = 0;
   cl::Buffer nodes_, tris_, env_, indices_, faceNormals_, radiance_;
@@ -321,9 +325,9 @@ int fillInvalidProbes(ProbeGridResult& g) {
   return g.fillPasses;
 }
 
-std::string detail::probesOptions(int order, int envOrder, int packetWidth) {
+std::string detail::probesOptions(int order, int envOrder, int packetWidth, int rayLanes) {
   return "-DPROBE_ORDER=" + std::to_string(order) + " -DENV_ORDER=" + std::to_string(envOrder) +
-         " -DBVH_PACKET=" + std::to_string(packetWidth);
+         " -DBVH_PACKET=" + std::to_string(packetWidth) + (rayLanes > 1 ? " -DRAY_LANES=" + std::to_string(rayLanes) : "");
 }
 
 ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& o) {
@@ -399,7 +403,9 @@ ProbeGridResult computeProbeGrid(Runtime& rt, const Mesh& mesh, const ShCoeffs& 
     return quadrature(*rings, *segments);
   };
 
-  ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, detail::packetWidthFor(rt.info(), o.packetWidth));
+  const int width = detail::packetWidthFor(rt.info(), o.packetWidth);
+  ProbeTracer tracer(rt, mesh, bvh, environment, o.order, envOrder, radiance, width,
+                     detail::rayLanesFor(rt.info(), width, o.rayLanes));
   // A probe inside geometry (back faces over the limit) is relocated or filled: its trace may stop.
   const float stop = float(o.backfaceLimit * 4 * kPi);
   int samples = o.samples;

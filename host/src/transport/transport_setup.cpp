@@ -174,6 +174,11 @@ int packetWidthFor(const DeviceInfo& device, int requested) {
   return requested >= 0 ? requested : device.type == "cpu" ? 16 : 0;
 }
 
+void checkRayLanes(int requested) {
+  if (requested != -1 && (requested < 1 || requested > 32 || (requested & (requested - 1)) != 0))
+    throw UsageError("ray lanes", std::to_string(requested) + " (expected 1, 2, 4, 8, 16 or 32, or -1: by the device)");
+}
+
 int rayLanesFor(const DeviceInfo& device, int packetWidth, int requested) {
   if (packetWidth > 0) return 1;
   return requested >= 1 ? requested : device.type == "cpu" ? 1 : 32;
@@ -188,8 +193,7 @@ void checkTransportOptions(const TransportOptions& o) {
     throw UsageError("--bounces", std::to_string(o.bounces) + " is out of range [1, 64]");
   if (o.packetWidth != -1 && o.packetWidth != 0 && o.packetWidth != 8 && o.packetWidth != 16)
     throw UsageError("packet width", std::to_string(o.packetWidth) + " (expected 0, 8 or 16, or -1: by the device)");
-  if (o.rayLanes != -1 && (o.rayLanes < 1 || o.rayLanes > 32 || (o.rayLanes & (o.rayLanes - 1)) != 0))
-    throw UsageError("ray lanes", std::to_string(o.rayLanes) + " (expected 1, 2, 4, 8, 16 or 32, or -1: by the device)");
+  checkRayLanes(o.rayLanes);
   if (!(o.bounceTolerance >= 0) || !std::isfinite(o.bounceTolerance))
     throw UsageError("--bounce-tolerance", "must be a finite number ≥ 0");
   if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))

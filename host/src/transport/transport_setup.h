@@ -60,6 +60,8 @@ int packetWidthFor(const DeviceInfo& device, int requested);
 // 32 on any other (a GPU's warp: a mesh of few vertices still fills the device, and a warp's
 // rays are neighbours of one vertex). 1 for the packet kernels.
 int rayLanesFor(const DeviceInfo& device, int packetWidth, int requested);
+// Throws UsageError unless `requested` is −1 (by the device) or 1, 2, 4, 8, 16 or 32.
+void checkRayLanes(int requested);
 // The BVH's nodes on the device: the 4-wide tree for the packet kernels (`wide`), else
 // the binary one. A BVH without nodes (every triangle of zero area) becomes one node that
 // no ray enters.
