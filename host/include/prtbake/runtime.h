@@ -91,6 +91,8 @@ class Runtime {
   size_t loopLocalSize(size_t lanes = 1) const {
     return std::min((loopGroupSize_ + lanes - 1) / lanes * lanes, std::max(maxWorkGroupSize() / lanes, size_t(1)) * lanes);
   }
+  // The local memory of kernels/lanes.clh's sums in such a kernel: a float per work-item.
+  cl::LocalSpaceArg laneSumMemory(size_t lanes) const { return cl::Local(loopLocalSize(lanes) * sizeof(float)); }
   // Enqueues such a kernel over items first … first + count − 1, `lanes` work-items each
   // (item i: work-items lanes·i … lanes·i + lanes − 1), in groups of loopLocalSize(lanes) (the
   // last one part-filled: the kernel skips ids past its item count).

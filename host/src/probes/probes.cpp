@@ -164,7 +164,7 @@ class ProbeTracer {
         kernel_.setArg(a++, padded);
         kernel_.setArg(a++, backStop);
       } else {
-        kernel_.setArg(a++, cl::Local(rt_.loopLocalSize(lanes_) * sizeof(float)));  // lanes.clh
+        kernel_.setArg(a++, rt_.laneSumMemory(lanes_));
       }
       rt_.enqueueLoop(kernel_, count, 0, lanes_);
       rt_.queue().enqueueReadBuffer(outC, CL_FALSE, 0, count * nc * sizeof(float), coeffs.data() + first * nc);

@@ -87,9 +87,8 @@ class Tracer {
       k.setArg(8, out);
       k.setArg(9, vis);
       if (o_.packetWidth == 0) {  // the lane form's local memory (transport.cl)
-        const size_t local = rt_.loopLocalSize(size_t(o_.rayLanes));
-        k.setArg(12, cl::Local(local * 4));
-        k.setArg(13, cl::Local(local / size_t(o_.rayLanes) * kLaunchMaskBytes));
+        k.setArg(12, rt_.laneSumMemory(size_t(o_.rayLanes)));
+        k.setArg(13, cl::Local(rt_.loopLocalSize(size_t(o_.rayLanes)) / size_t(o_.rayLanes) * kLaunchMaskBytes));
       }
       const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size()), partSeen(seen.size());
@@ -144,7 +143,7 @@ class Tracer {
       k.setArg(9, albedo_);
       k.setArg(10, prev);
       k.setArg(11, out);
-      if (o_.packetWidth == 0) k.setArg(18, cl::Local(rt_.loopLocalSize(size_t(o_.rayLanes)) * 4));
+      if (o_.packetWidth == 0) k.setArg(18, rt_.laneSumMemory(size_t(o_.rayLanes)));
       const bool reuse = !blocked_.empty() && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       const bool record = reuse && more && hitChunks_ > 0 && !hitsWritten_;
       const bool replay = reuse && hitChunks_ > 0 && hitsWritten_;
@@ -278,7 +277,7 @@ class Tracer {
       k.setArg(maskArg + 1, mask == MaskUse::None ? 0 : words);
       before(chunk);
       const int chunks = (samples + detail::kTransportSampleChunk - 1) / detail::kTransportSampleChunk;
-      launchVertices(k, nv, n, double(chunk) / chunks, 1.0 / chunks, packet ? 1 : size_t(o_.rayLanes));
+      launchVertices(k, nv, n, double(chunk) / chunks, 1.0 / chunks, size_t(o_.rayLanes));  // 1 with packets
       collect(chunk, n);
     }
   }
