@@ -45,7 +45,7 @@ static Runtime& rt0() {
   return rt;
 }
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   if (argc < 3) {
     std::fprintf(stderr, "usage: bench_call lut CALLS [SIZE [SAMPLES]] | env CALLS [WIDTH] | transport CALLS [MESH]\n");
     return 2;
@@ -108,4 +108,7 @@ int main(int argc, char** argv) {
   std::sort(t.begin(), t.end());
   std::printf("%s %d %.9f %.9f\n", what.c_str(), calls, t[t.size() / 2], t[0]);
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

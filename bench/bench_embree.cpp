@@ -78,7 +78,7 @@ int writeKnot(const std::string& path, bool uv) {
 }
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   if ((argc == 3 || (argc == 4 && std::string(argv[3]) == "--uv")) && std::string(argv[1]) == "--write-knot")
     return writeKnot(argv[2], argc == 4);
   if (argc < 3) {
@@ -203,4 +203,7 @@ int main(int argc, char** argv) {
               nv, mesh.triangleCount(), ns, threads, tLoad, tRays, tBuild, tTrace, double(nv) * ns / tTrace * 1e-6,
               tWrite, since(t0));
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

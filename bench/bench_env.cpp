@@ -127,7 +127,7 @@ static std::string measureCommands() {
   return json;
 }
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string results = "bench/results/env.json";
   bool kernelOnly = false, sweep = false;
   for (int i = 1; i < argc; ++i) {
@@ -194,4 +194,7 @@ int main(int argc, char** argv) {
   std::ofstream(results) << json;
   std::printf("results written to %s\n", results.c_str());
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

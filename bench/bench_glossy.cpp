@@ -56,7 +56,7 @@ double median(std::vector<double> v) {
 }
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int target = 100000, repeats = 3;
   std::string dir = "/tmp/prtbake_bench_glossy";
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -99,4 +99,7 @@ int main(int argc, char** argv) {
     std::printf("%s: median wall %.2f s, median peak RSS %.0f MiB (%d runs)\n", name, median(wall), median(rss), repeats);
   }
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

@@ -168,7 +168,7 @@ void writeSvg(const std::string& path, const std::vector<int>& samples, const st
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   const std::string dir = argc > 1 ? argv[1] : "bench/results";
   ::mkdir(dir.c_str(), 0755);
   Runtime rt(std::getenv("PRTBAKE_DEVICE") ? "" : "cpu");
@@ -376,4 +376,7 @@ int main(int argc, char** argv) {
   std::ofstream(dir + "/lut.json") << json.str();
   std::printf("wrote %s/lut.json and CSV/SVG files\n", dir.c_str());
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

@@ -294,7 +294,7 @@ int timing(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   if (argc < 2) {
     std::fprintf(stderr, "usage: bench_prefilter accuracy|samples|timing [MAP...] [options]\n");
     return 2;
@@ -306,4 +306,7 @@ int main(int argc, char** argv) {
   if (mode == "samples") return samples(a);
   std::fprintf(stderr, "unknown mode %s\n", mode.c_str());
   return 2;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

@@ -38,7 +38,7 @@ double since(std::chrono::steady_clock::time_point t) {
 }
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int repeats = 5, triangles = 200000, width = 800, height = 600;
   std::string device = "cpu";
   double yaw = 30, pitch = 20;
@@ -93,4 +93,7 @@ int main(int argc, char** argv) {
   std::printf("bvh %.3f s  kernel %.3f s (%.2f M rays/s)  png %.3f s  total %.3f s  (process CPU %.3f s)\n",
               median(bvh), k, width * height / k * 1e-6, median(write), median(total), median(cpu));
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }

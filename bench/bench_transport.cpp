@@ -75,7 +75,7 @@ void run(Runtime& rt, const std::string& name, const Mesh& mesh, int order, int 
 }
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int repeats = 3, samplesLarge = 1024;
   std::string device;
   bool knot = false;
@@ -105,4 +105,7 @@ int main(int argc, char** argv) {
   const Mesh large = knot ? makeTorusKnot(800, 128) : makeBumpySphere(204000);
   for (int order : {3, 5}) run(rt, knot ? "knot" : "bumpy sphere", large, order, samplesLarge, std::max(1, repeats / 3));
   return 0;
+} catch (const std::exception& e) {  // a bad argument or a missing device: one line, no abort
+  std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  return 1;
 }
