@@ -63,7 +63,7 @@
 #define VLOAD(p) vload16(0, (p))
 #define LANES ((float16)(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f, 8.f, 9.f, 10.f, 11.f, 12.f, 13.f, 14.f, 15.f))
 #define HSUM(v) hsum16(v)
-inline float hsum16(float16 v) {
+static inline float hsum16(float16 v) {
   float8 a = v.lo + v.hi;
   float4 b = a.lo + a.hi;
   float2 c = b.lo + b.hi;
@@ -85,7 +85,7 @@ inline float hsum16(float16 v) {
 #define VLOAD(p) vload8(0, (p))
 #define LANES ((float8)(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f))
 #define HSUM(v) hsum8(v)
-inline float hsum8(float8 v) {
+static inline float hsum8(float8 v) {
   float4 b = v.lo + v.hi;
   float2 c = b.lo + b.hi;
   return c.x + c.y;
@@ -126,7 +126,7 @@ inline float hsum8(float8 v) {
 // padding lanes; radiance r, g, b) to the accumulators.
 // Plain multiply-add, not fma(): PoCL lowers the vector fma() builtin to a slow
 // correctly-rounded routine here (measured 2x slower for the whole kernel).
-inline void accumulate(SH_T x, SH_T y, SH_T z, SH_T w, SH_T r, SH_T g, SH_T b, SH_T* acc) {
+static inline void accumulate(SH_T x, SH_T y, SH_T z, SH_T w, SH_T r, SH_T g, SH_T b, SH_T* acc) {
   SH_T basis[NC];
   sh_eval(SH_ORDER, x, y, z, basis);
   r *= w;
@@ -140,14 +140,14 @@ inline void accumulate(SH_T x, SH_T y, SH_T z, SH_T w, SH_T r, SH_T g, SH_T b, S
   }
 }
 
-inline void store_row(SH_T* acc, __global float* out) {
+static inline void store_row(SH_T* acc, __global float* out) {
   UNROLL
   for (int k = 0; k < 3 * NC; ++k) out[k] = HSUM(acc[k]);
 }
 
 // Loads lanes c0..c0+VW-1 of an RGB row and weight row that may end before the
 // vector does (columns ≥ n get weight 0 and radiance 0).
-inline void load_tail(__global const ENV_T* rgbRow, __global const float* codeToLinear, __global const float* wRow,
+static inline void load_tail(__global const ENV_T* rgbRow, __global const float* codeToLinear, __global const float* wRow,
                       int c0, int n, SH_T* r, SH_T* g, SH_T* b, SH_T* w) {
   float tr[VW], tg[VW], tb[VW], tw[VW];
   for (int l = 0; l < VW; ++l) {
@@ -166,7 +166,7 @@ inline void load_tail(__global const ENV_T* rgbRow, __global const float* codeTo
 }
 
 // Lanes c0..c0+VW-1 of a row: RGB de-interleaved and the weights (solid angles).
-inline void load_texels(__global const ENV_T* rgbRow, __global const float* codeToLinear, __global const float* wRow,
+static inline void load_texels(__global const ENV_T* rgbRow, __global const float* codeToLinear, __global const float* wRow,
                         int c0, int n, SH_T* r, SH_T* g, SH_T* b, SH_T* w) {
   if (c0 + VW <= n) {
     SH_T tr, tg, tb;

@@ -45,7 +45,7 @@
 #define OUT_COUNT (OUT_ORDER * OUT_ORDER)
 #define IN_COUNT (IN_ORDER * IN_ORDER)
 
-inline float glossy_hsum(float16 a) {
+static inline float glossy_hsum(float16 a) {
   float s = 0.0f;
   for (int j = 0; j < 16; ++j) s += ((float*)&a)[j];
   return s;

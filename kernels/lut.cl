@@ -42,7 +42,7 @@
 #define LUT_TWO_PI 6.28318530717958648f
 #define LUT_INV_PI 0.31830988618379067f
 
-inline float lut_hsum16(float16 v) {
+static inline float lut_hsum16(float16 v) {
   float8 a = v.lo + v.hi;
   float4 b = a.lo + a.hi;
   float2 c = b.lo + b.hi;

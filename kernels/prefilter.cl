@@ -63,7 +63,7 @@
 // f⁷ (next term < 1e-8), 0 below 2⁻¹²⁶, 2¹²⁷·√2·2^f above (the weight's y exceeds 127 only
 // below the horizon, μ < −½ at α < 0.004, where the weight is μ⁺ · 2^y = 0: an infinity there would
 // make it NaN). Both within a few float ulps (tests/test_prefilter.cpp).
-inline V pf_log2(V x) {
+static inline V pf_log2(V x) {
   const VI bits = AS_VI(x);
   V m = AS_V((bits & 0x007fffff) | 0x3f800000);
   const VI big = m > 1.41421356f;
@@ -73,7 +73,7 @@ inline V pf_log2(V x) {
   const V s = 1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * (0.14285714f + t2 * 0.11111111f)));
   return CONVERT_V(ex) + 2.88539008f * t * s;
 }
-inline V pf_exp2(V y) {
+static inline V pf_exp2(V y) {
   const V yc = clamp(y, -126.0f, 127.0f), nf = floor(yc), f = yc - nf - 0.5f;
   const V p = 1.0f + f * (0.69314718f + f * (0.24022651f + f * (0.05550411f + f * (0.00961813f +
               f * (0.00133336f + f * (1.5403530e-4f + f * 1.5252734e-5f))))));
@@ -87,7 +87,7 @@ inline V pf_exp2(V y) {
 //   Charlie    μ (e/2)^(1/(2α)) / k_max, in log2 form
 //   lambertian μ
 // lobe = (α², 1/(2α), log2 k_max, 0). Zero below the horizon (μ ≤ 0).
-inline V pf_lobe(V e, float4 lobe) {
+static inline V pf_lobe(V e, float4 lobe) {
   V mu = 1.0f - e;
 #if PF_LOBE == 0
   V q = 0.5f * e + (1.0f - 0.5f * e) * lobe.x;
@@ -185,7 +185,7 @@ __kernel void prefilter_cut(__global const float4* flux, __global const float4* 
 // Bilinear lookup in level `lvl` of the bordered chain: levels[lvl] = (offset in texels of
 // the level, face size m); each face stores (m + 2)² float4 texels, row 0 and column 0 being
 // the border. (s, t) ∈ [0, 1]² on the face.
-inline float4 pf_bilinear(__global const float4* chain, __global const int2* levels, int lvl, int face, float s,
+static inline float4 pf_bilinear(__global const float4* chain, __global const int2* levels, int lvl, int face, float s,
                           float t) {
   const int2 lv = levels[lvl];
   const int m = lv.y, stride = m + 2;
@@ -200,7 +200,7 @@ inline float4 pf_bilinear(__global const float4* chain, __global const int2* lev
 }
 
 // Face and (s, t) ∈ [0, 1]² of a direction (docs/conventions.md "Cube faces": +X (1, −v, −u), ...).
-inline int pf_face_st(float3 d, float* s, float* t) {
+static inline int pf_face_st(float3 d, float* s, float* t) {
   const float3 a = fabs(d);
   int face;
   float u, v, ma;
