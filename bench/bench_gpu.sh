@@ -7,7 +7,8 @@
 # scalar kernels at 1, 8 and 32 work-items per vertex),
 # cold and warm `prtbake lut` (empty NVIDIA and PoCL program caches), whole commands (env,
 # lut, prefilter, ibl, glossy transfer with CPCA, mesh transport and preview, a probe grid) on both
-# devices, and the benchmark programs of build/bench on both. Every step runs under
+# devices, the registers, stack and spills of every kernel variant the GPU built (NVIDIA's
+# -cl-nv-verbose, through bench_kernels), and the benchmark programs of build/bench on both. Every step runs under
 # `timeout` and within an overall budget (a step that hangs is recorded as TIMEOUT, one that
 # the budget no longer allows as SKIPPED); a failing step is recorded with its error line and
 # the run goes on. Writes RESULTS/gpu.md (the report, rewritten after every step),
@@ -20,8 +21,8 @@
 #
 # Runs prebuilt binaries: the machine needs none of the build's packages. Before, on the
 # build machine, `bash bench/gpu_pack.sh` fills .gpu/ (git-ignored) with what is carried:
-#   .gpu/bin/      prtbake, bench_env, bench_glossy, bench_lut, bench_prefilter, bench_preview,
-#                  bench_transport (stripped)
+#   .gpu/bin/      prtbake, bench_env, bench_glossy, bench_kernels, bench_lut, bench_prefilter,
+#                  bench_preview, bench_transport (stripped)
 #   .gpu/lib/      libOpenEXR-3_1.so.30, libIex-3_1.so.30, libIlmThread-3_1.so.30,
 #                  libImath-3_1.so.29, libtinygltf.so.2d, libtinyobjloader.so.2rc10, libstb.so.0,
 #                  libz.so.1 (LD_LIBRARY_PATH=.gpu/lib)
@@ -111,7 +112,12 @@ step() {
   [ "$lim" -gt "$left" ] && lim=$left
   log "=== [$id] $label ($dev), limit ${lim} s, at ${SECONDS} s: $(printf '%q ' "$@")"
   t0=$(date +%s.%N)
-  timeout -k 5 "$lim" "$@" > "$out" 2>&1 < /dev/null
+  # The GPU's steps log the kernel variants they build (section 4b builds them again, verbosely).
+  if [ "$dev" = gpu ]; then
+    timeout -k 5 "$lim" env PRTBAKE_BUILD_LOG="$work/built_gpu.tsv" "$@" > "$out" 2>&1 < /dev/null
+  else
+    timeout -k 5 "$lim" "$@" > "$out" 2>&1 < /dev/null
+  fi
   rc=$?
   t1=$(date +%s.%N)
   WALL=$(awk -v a="$t0" -v b="$t1" 'BEGIN {printf "%.2f", b - a}')
@@ -453,6 +459,28 @@ PY
 else
   sec "No python3 here: the outputs were not compared."
 fi
+render
+
+# --- 4b. what NVIDIA's compiler made of the kernels the GPU's steps built ---
+CUR=35
+sec "## Registers, stack and spills on the GPU (bench_kernels --extra -cl-nv-verbose)" ""
+sec "Every kernel variant the GPU's steps above built, built again with NVIDIA's \`-cl-nv-verbose\` (ptxas's report in the build log); bench/gpu_static.sh gives the same figures from clang and ptxas without a GPU. Warps per SM: 65,536 registers in units of 256 a warp, at most 64." ""
+verbose=()  # -cl-nv-verbose is NVIDIA's own option (another device, as in QUICK checks on a CPU, gets none)
+printf '%s\n' "$devs" | sed 's/^\*/ /' | awk -v d="$GPU" '$1 == d' | grep -q NVIDIA && verbose=(--extra -cl-nv-verbose)
+if [ -s "$work/built_gpu.tsv" ] && step kernels_gpu "kernel variants, verbose build" gpu 40 "$BIN/bench_kernels" "$work/built_gpu.tsv" --device "$GPU" "${verbose[@]}"; then
+  sec "| file | options | kernel | registers | stack [B] | spill stores [B] | spill loads [B] | warps per SM |" "|---|---|---|---|---|---|---|---|"
+  awk -F'\t' '
+    NF == 6 && $1 ~ /\.cl$/ { file = $1; opts = $2; next }
+    /Compiling entry function/ { match($0, /\047[^\047]*\047/); k = substr($0, RSTART + 1, RLENGTH - 2) }
+    /bytes stack frame/ { split($0, w, " "); st = w[1]; ss = w[5]; sl = w[9] }
+    /Used [0-9]+ registers/ { match($0, /Used [0-9]+/); r = substr($0, RSTART + 5, RLENGTH - 5) + 0
+      wp = int(65536 / (int((r * 32 + 255) / 256) * 256)); if (wp > 64) wp = 64
+      printf "| %s | %s | %s | %d | %s | %s | %s | %d |\n", file, opts, k, r, st, ss, sl, wp }' "$work/kernels_gpu.out" >> "$work/sec_$CUR.md"
+else
+  sec "No table: $STATUS." ""
+  show kernels_gpu 20
+fi
+sec ""
 render
 
 # --- 5. the benchmark programs ---
