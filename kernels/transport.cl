@@ -40,11 +40,6 @@
 #define CHANNELS 1
 #endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
-// Rays per word of the scalar kernels' blocked-ray masks (ushort words, as the packets').
-#define TRANSPORT_MASK_BITS 16
-// The most directions of one launch (detail::kTransportSampleChunk), as 32-bit words of
-// blocked-ray bits: the lane form's mask of a vertex in local memory.
-#define TRANSPORT_LAUNCH_UINTS 32
 // Per-coefficient loops of the packet kernels are unrolled up to order 8, so their
 // accumulators stay in registers instead of a load, add and store per coefficient.
 #if SH_ORDER <= 8
@@ -93,7 +88,7 @@ static inline void bounce_gather(int tri, float u, float v, __global const int4*
 //           is blocked, written for every vertex (for the bounces, which trace the same rays:
 //           transport_bounce)
 // red, bits: local memory of the lane form (RAY_LANES > 1; unused otherwise): a float per
-//           work-item, and TRANSPORT_LAUNCH_UINTS uints per vertex of the group.
+//           work-item, and LANES_LAUNCH_UINTS uints per vertex of the group (lanes.clh).
 __kernel void transport_direct(int vertexCount, int sampleCount, __global const float4* origins,
                                __global const float4* frames, __global const float4* dirs,
                                __global const BvhNode* nodes, __global const float4* tris, float tMax,
@@ -109,8 +104,8 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
   for (int k = 0; k < SH_COUNT; ++k) acc[k] = 0.0f;
   int seen = 0;
 #if RAY_LANES > 1
-  __local uint* mine = bits + get_local_id(0) / RAY_LANES * TRANSPORT_LAUNCH_UINTS;  // this vertex's rays
-  for (int w = lane; w < TRANSPORT_LAUNCH_UINTS; w += RAY_LANES) mine[w] = 0;
+  __local uint* mine = bits + get_local_id(0) / RAY_LANES * LANES_LAUNCH_UINTS;  // this vertex's rays
+  lanes_mask_clear(mine, lane);
   barrier(CLK_LOCAL_MEM_FENCE);  // unconditional, as in lanes_sum
 #endif
   if (active && dot(frame[2].xyz, frame[2].xyz) > 0.0f) {
@@ -126,9 +121,9 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
 #if RAY_LANES > 1
       if (hit && maskWords > 0) atomic_or(mine + s / 32, 1u << (s % 32));
 #else
-      word |= (uint)hit << (s % TRANSPORT_MASK_BITS);
-      if (maskWords > 0 && (s % TRANSPORT_MASK_BITS == TRANSPORT_MASK_BITS - 1 || s == sampleCount - 1)) {
-        blocked[(size_t)vi * maskWords + s / TRANSPORT_MASK_BITS] = (ushort)word;
+      word |= (uint)hit << (s % LANES_MASK_BITS);
+      if (maskWords > 0 && (s % LANES_MASK_BITS == LANES_MASK_BITS - 1 || s == sampleCount - 1)) {
+        blocked[(size_t)vi * maskWords + s / LANES_MASK_BITS] = (ushort)word;
         word = 0;
       }
 #endif
@@ -144,8 +139,7 @@ __kernel void transport_direct(int vertexCount, int sampleCount, __global const 
   }
 #if RAY_LANES > 1
   barrier(CLK_LOCAL_MEM_FENCE);  // every lane's bits are in
-  for (int w = lane; active && w < maskWords; w += RAY_LANES)
-    blocked[(size_t)vi * maskWords + w] = (ushort)(mine[w / 2] >> (w % 2 * TRANSPORT_MASK_BITS));
+  if (active) lanes_mask_store(mine, blocked + (size_t)vi * maskWords, lane, maskWords);
 #endif
   for (int k = 0; k < SH_COUNT; ++k) {
     const float sum = lanes_sum(acc[k], red);
@@ -210,10 +204,7 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
       const int s = s0 + lane;
       uint step = 0xffffffffu >> (32 - RAY_LANES);  // the step's rays to trace
       if (maskWords > 0) {
-        __global const ushort* w = blocked + (size_t)vi * maskWords + s0 / TRANSPORT_MASK_BITS;
-        step &= (uint)w[0] >> (s0 % TRANSPORT_MASK_BITS);
-        if (RAY_LANES > TRANSPORT_MASK_BITS && s0 / TRANSPORT_MASK_BITS + 1 < maskWords)
-          step |= (uint)w[1] << TRANSPORT_MASK_BITS;
+        step = lanes_mask_step(blocked + (size_t)vi * maskWords, s0, maskWords);
         if (step == 0) continue;  // no blocked ray in this step (the whole vertex skips it)
       }
       const int rank = before + popcount(step & ((1u << lane) - 1u));

@@ -47,7 +47,8 @@ int main() {
           print("preview.cl", detail::previewMeshOptions(order, channels, light, shBackground));
   for (int out = kMinGlossyOrder; out <= kMaxGlossyOrder; ++out)
     for (int in = kMinGlossyOrder; in <= kMaxGlossyOrder; ++in)
-      for (bool visibility : {false, true}) print("glossy.cl", detail::glossyOptions(out, in, visibility));
+      for (bool visibility : {false, true})
+        for (int lanes : {1, 8, 32}) print("glossy.cl", detail::glossyOptions(out, in, visibility, lanes));
   for (int out = kMinGlossyOrder; out <= kMaxGlossyOrder; ++out)
     for (int light : {1, 3, kMaxShOrder})
       for (bool shBackground : {false, true})

@@ -70,6 +70,12 @@ struct GlossyOptions {
   std::optional<size_t> vertexCount;
   // Vertices per device launch: device and host memory stay bounded by a block.
   size_t blockVertices = 4096;
+  // Work-items per vertex: 1, the packet kernels (16 rays a work-item in vectors, a CPU's);
+  // 2, 4, 8, 16 or 32, the lane form (each work-item traces one ray of a step and sums its
+  // share of the matrix entries: a GPU's). −1: by the device (detail::rayLanesFor: 1 on a
+  // CPU, 32 elsewhere). The results agree up to float summation order; the lane form's do not
+  // depend on the lane count or the work-group size.
+  int rayLanes = -1;
 };
 
 struct GlossyStats {

@@ -26,7 +26,7 @@ std::string transportOptions(int order, bool visibility, int channels, int packe
 // preview.cl: transport order and channels, lighting order, SH or image background.
 std::string previewMeshOptions(int order, int channels, int lightOrder, bool shBackground);
 // glossy.cl: output and input SH orders (the kernel's basis goes to the larger), visibility.
-std::string glossyOptions(int orderOut, int orderIn, bool visibility);
+std::string glossyOptions(int orderOut, int orderIn, bool visibility, int rayLanes = 1);
 // glossy_preview.cl: the matrices' output order, lighting order, SH or image background.
 std::string glossyPreviewOptions(int orderOut, int lightOrder, bool shBackground);
 // prefilter.cl, prefilter_cut: the lobe and texels per work-item (1, 8, 16);

@@ -24,7 +24,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // Directions per launch: no kernel sums more than this many in float.
-constexpr int kSampleChunk = 1024;
+constexpr int kSampleChunk = 1024;  // at most 1024: the lane form's mask (Runtime::laneMaskMemory)
 // Host memory of one block's double sums, at most (the block size shrinks to fit).
 constexpr double kBlockBytes = 64.0 * 1024 * 1024;
 
@@ -78,6 +78,7 @@ void checkGlossyOptions(const GlossyOptions& o) {
   if (!(o.bounceTolerance >= 0) || !std::isfinite(o.bounceTolerance))
     throw UsageError("--bounce-tolerance", "must be a finite number >= 0");
   if (o.blockVertices < 1) throw UsageError("block size", "must be at least 1 vertex");
+  detail::checkRayLanes(o.rayLanes);
   if (o.albedoOverride)
     for (float a : *o.albedoOverride)
       if (!(a >= 0 && a <= 1)) throw UsageError("--albedo", "albedo must lie in [0, 1]");
@@ -85,9 +86,10 @@ void checkGlossyOptions(const GlossyOptions& o) {
 
 namespace detail {
 
-std::string glossyOptions(int orderOut, int orderIn, bool visibility) {
+std::string glossyOptions(int orderOut, int orderIn, bool visibility, int rayLanes) {
   return "-DSH_ORDER=" + std::to_string(std::max(orderOut, orderIn)) + " -DOUT_ORDER=" + std::to_string(orderOut) +
-         " -DIN_ORDER=" + std::to_string(orderIn) + " -DVISIBILITY=" + (visibility ? "1" : "0");
+         " -DIN_ORDER=" + std::to_string(orderIn) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
+         (rayLanes > 1 ? " -DRAY_LANES=" + std::to_string(rayLanes) : "");
 }
 
 TransportOptions glossyTransportOptions(const GlossyOptions& o) {
@@ -172,6 +174,7 @@ class GlossyBaker {
     nmax2_ = nmax * nmax, gramCount_ = nmax2_ * (nmax2_ + 1) / 2, ch_ = st.channels;
     visibility_ = o.mode != TransportMode::Unshadowed;
     bounce_ = o.mode == TransportMode::Interreflected;
+    lanes_ = size_t(detail::rayLanesFor(rt.info(), 0, o.rayLanes));
     if (bounce_) diffuseBounces();
     for (size_t v = o.firstVertex; v < o.firstVertex + st.vertexCount; ++v) {
       const float* n = &setup_.frames[12 * v + 8];
@@ -180,7 +183,7 @@ class GlossyBaker {
     uploadScene();
     for (size_t v = o.firstVertex; v < o.firstVertex + st.vertexCount; ++v) st.verticesUnoccludable += unocc_[v];
     directionChunks(nmax);
-    const std::string opts = detail::glossyOptions(o.orderOut, o.orderIn, visibility_);
+    const std::string opts = detail::glossyOptions(o.orderOut, o.orderIn, visibility_, int(lanes_));
     gramK_ = rt.kernel("glossy.cl", "glossy_gram", opts);
     noMask_ = rt.upload(std::vector<uint16_t>(8, 0));  // bound when no mask is kept
     if (bounce_) {
@@ -250,8 +253,8 @@ class GlossyBaker {
     st_.bvhNodes = bvh.nodes.size();
     st_.degenerateTriangles = bvh.degenerateTriangles;
     unocc_ = detail::unoccludableFromBvh(mesh_, bvh, setup_);
-    nodes_ = detail::uploadBvhNodes(rt_, bvh, true);
-    tris_ = detail::uploadBvhTriangles(rt_, bvh, true);
+    nodes_ = detail::uploadBvhNodes(rt_, bvh, lanes_ == 1);  // the lane form's rays take the binary BVH
+    tris_ = detail::uploadBvhTriangles(rt_, bvh, lanes_ == 1);
   }
 
   // The direction chunks, uploaded once and reused by every block: the product rule of order
@@ -302,7 +305,9 @@ class GlossyBaker {
       gramK_.setArg(a++, c.padded);
       gramK_.setArg(a++, masks_.back());
       gramK_.setArg(a++, maskWords);
-      rt_.enqueueLoop(gramK_, nb);
+      gramK_.setArg(a++, cl::Local(rt_.loopLocalSize(lanes_) * (1 + nmax2_) * sizeof(float)));
+      gramK_.setArg(a++, rt_.laneMaskMemory(lanes_));
+      rt_.enqueueLoop(gramK_, nb, 0, lanes_);
       rt_.queue().enqueueReadBuffer(gramOut, CL_TRUE, 0, part_.size() * 4, part_.data());
       reportProgress("glossy", progress_);
       if (keepMask_) {
@@ -358,7 +363,8 @@ class GlossyBaker {
         bounceK_.setArg(a++, int(chunks_.size()));
         bounceK_.setArg(a++, int(ci));
         bounceK_.setArg(a++, keepHits_ ? (c == 0 ? 1 : 2) : 0);
-        rt_.enqueueLoop(bounceK_, nb);
+        bounceK_.setArg(a++, cl::Local(rt_.loopLocalSize(lanes_) * (1 + no2_ + ni2_) * sizeof(float)));
+        rt_.enqueueLoop(bounceK_, nb, 0, lanes_);
         rt_.queue().enqueueReadBuffer(bounceOut, CL_TRUE, 0, part_.size() * 4, part_.data());
         reportProgress("glossy", progress_);
         for (size_t i = 0; i < nb; ++i)
@@ -397,6 +403,7 @@ class GlossyBaker {
   const detail::RaySetup setup_;
   int no2_ = 0, ni2_ = 0, nmax2_ = 0, gramCount_ = 0, ch_ = 1;
   bool visibility_ = false, bounce_ = false;
+  size_t lanes_ = 1;  // work-items per vertex (1: the packet kernels)
   std::vector<float> diffuse_;
   int diffuseChannels_ = 1;
   std::vector<uint8_t> unocc_;

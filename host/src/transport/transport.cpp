@@ -29,13 +29,10 @@ constexpr size_t kRaysPerBlock = size_t(1) << 22;
 // The most device memory the direct term's blocked-ray masks may take (a bit per ray:
 // 1024 samples on 2 million vertices); beyond it the bounces trace every ray.
 constexpr double kMaskBytes = 256.0 * 1024 * 1024;
-// Rays per 16-bit mask word of the scalar kernels (TRANSPORT_MASK_BITS in transport.cl; a
+// Rays per 16-bit mask word of the scalar kernels (LANES_MASK_BITS in kernels/lanes.clh; a
 // packet kernel's word holds a packet).
 constexpr int kScalarMaskBits = 16;
-// The bytes of one launch's mask of a vertex in the lane form's local memory
-// (TRANSPORT_LAUNCH_UINTS uints).
-constexpr size_t kLaunchMaskBytes = 32 * 4;
-static_assert(detail::kTransportSampleChunk <= kLaunchMaskBytes * 8, "a launch's rays fit the lane form's mask");
+static_assert(detail::kTransportSampleChunk <= 1024, "a launch's rays fit the lane form's mask (Runtime::laneMaskMemory)");
 
 // The scene on the device and the kernels over lists of vertices. Each call takes
 // `samples` directions per vertex (the samples-point set of the seed and sampler) in
@@ -88,7 +85,7 @@ class Tracer {
       k.setArg(9, vis);
       if (o_.packetWidth == 0) {  // the lane form's local memory (transport.cl)
         k.setArg(12, rt_.laneSumMemory(size_t(o_.rayLanes)));
-        k.setArg(13, cl::Local(rt_.loopLocalSize(size_t(o_.rayLanes)) / size_t(o_.rayLanes) * kLaunchMaskBytes));
+        k.setArg(13, rt_.laneMaskMemory(size_t(o_.rayLanes)));
       }
       const bool keep = keepBlocked_ && samples == o_.samples && size_t(nv) == mesh_.vertexCount();
       std::vector<float> part(sums.size()), partSeen(seen.size());
