@@ -468,14 +468,19 @@ sec "Every kernel variant the GPU's steps above built, built again with NVIDIA's
 verbose=()  # -cl-nv-verbose is NVIDIA's own option (another device, as in QUICK checks on a CPU, gets none)
 printf '%s\n' "$devs" | sed 's/^\*/ /' | awk -v d="$GPU" '$1 == d' | grep -q NVIDIA && verbose=(--extra -cl-nv-verbose)
 if [ -s "$work/built_gpu.tsv" ] && step kernels_gpu "kernel variants, verbose build" gpu 40 "$BIN/bench_kernels" "$work/built_gpu.tsv" --device "$GPU" "${verbose[@]}"; then
-  sec "| file | options | kernel | registers | stack [B] | spill stores [B] | spill loads [B] | warps per SM |" "|---|---|---|---|---|---|---|---|"
-  awk -F'\t' '
-    NF == 6 && $1 ~ /\.cl$/ { file = $1; opts = $2; next }
-    /Compiling entry function/ { match($0, /\047[^\047]*\047/); k = substr($0, RSTART + 1, RLENGTH - 2) }
-    /bytes stack frame/ { split($0, w, " "); st = w[1]; ss = w[5]; sl = w[9] }
-    /Used [0-9]+ registers/ { match($0, /Used [0-9]+/); r = substr($0, RSTART + 5, RLENGTH - 5) + 0
-      wp = int(65536 / (int((r * 32 + 255) / 256) * 256)); if (wp > 64) wp = 64
-      printf "| %s | %s | %s | %d | %s | %s | %s | %d |\n", file, opts, k, r, st, ss, sl, wp }' "$work/kernels_gpu.out" >> "$work/sec_$CUR.md"
+  if [ ${#verbose[@]} -eq 0 ]; then
+    sec "Not an NVIDIA device: no ptxas report. bench_kernels printed:" ""
+    show kernels_gpu 20
+  else
+    sec "| file | options | kernel | registers | stack [B] | spill stores [B] | spill loads [B] | warps per SM |" "|---|---|---|---|---|---|---|---|"
+    awk -F'\t' '
+      NF == 6 && $1 ~ /\.cl$/ { file = $1; opts = $2; next }
+      /Compiling entry function/ { match($0, /\047[^\047]*\047/); k = substr($0, RSTART + 1, RLENGTH - 2) }
+      /bytes stack frame/ { split($0, w, " "); st = w[1]; ss = w[5]; sl = w[9] }
+      /Used [0-9]+ registers/ { match($0, /Used [0-9]+/); r = substr($0, RSTART + 5, RLENGTH - 5) + 0
+        wp = int(65536 / (int((r * 32 + 255) / 256) * 256)); if (wp > 64) wp = 64
+        printf "| %s | %s | %s | %d | %s | %s | %s | %d |\n", file, opts, k, r, st, ss, sl, wp }' "$work/kernels_gpu.out" >> "$work/sec_$CUR.md"
+  fi
 else
   sec "No table: $STATUS." ""
   show kernels_gpu 20
@@ -518,7 +523,7 @@ for dn in gpu cpu; do
   fi
 done
 mkdir -p "$work/lut_gpu" "$work/lut_cpu"
-bench b_lut_gpu bench_lut gpu 120 env PRTBAKE_DEVICE=gpu "$BIN/bench_lut" "$work/lut_gpu"
+bench b_lut_gpu bench_lut gpu 120 env PRTBAKE_DEVICE="$GPU" "$BIN/bench_lut" "$work/lut_gpu"
 [ -f "$work/lut_gpu/lut.json" ] && cp "$work/lut_gpu/lut.json" "$RES/lut_gpu.json"
 bench b_lut_cpu bench_lut cpu 120 env PRTBAKE_DEVICE="$CPU" "$BIN/bench_lut" "$work/lut_cpu"
 render

@@ -23,8 +23,9 @@
 // accumulators take every register of a GPU's thread and spill (bench/results/gpu.md), so there
 // a vertex has L work-items. Step by step, lane j traces ray s0 + j alone (the binary BVH of
 // bvh.clh) and puts its weight and SH values (and, in glossy_bounce, g_j) in local memory;
-// then each lane adds the step's L rays to the entries it owns (entry k: lane k % L), in
-// ray order, so an entry sums its rays in the same order for any L and any group size.
+// then each lane sums the step's L rays, in ray order, into the entries it owns (entry k:
+// lane k % L) and adds that to the entry's total: two levels, as the packets' 16 lanes, so the
+// float rounding stays as small as theirs; a result does not depend on the group size.
 //
 // Build options: SH_ORDER (glossy_gram: max(n_out, n_in)), OUT_ORDER and IN_ORDER
 // (glossy_bounce), VISIBILITY (0: no BVH access, for the unshadowed product rule), RAY_LANES.
@@ -143,12 +144,12 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
     barrier(CLK_LOCAL_MEM_FENCE);  // the step's rays are in
     for (int m = 0; m < GRAM_PER_LANE; ++m) {
       if (ei[m] < 0) continue;
-      float a = acc[m];
+      float a = 0.0f;  // the step's sum, then the entry's: two levels, as the packets' lanes
       for (int q = 0; q < RAY_LANES; ++q) {
         __local const float* rq = step + q * GRAM_RAY_FLOATS;
         a = fma(rq[0] * rq[1 + ei[m]], rq[1 + ej[m]], a);
       }
-      acc[m] = a;
+      acc[m] += a;
     }
     barrier(CLK_LOCAL_MEM_FENCE);  // read by every lane: free for the next step
   }
@@ -280,12 +281,12 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
     for (int m = 0; m < BOUNCE_PER_LANE; ++m) {
       const int k = m * RAY_LANES + lane, i = k / IN_COUNT, j = k % IN_COUNT;
       if (k >= OUT_COUNT * IN_COUNT) break;
-      float a = acc[m];
+      float a = 0.0f;
       for (int q = 0; q < RAY_LANES; ++q) {
         __local const float* rq = step + q * BOUNCE_RAY_FLOATS;
         a = fma(rq[0] * rq[1 + i], rq[1 + OUT_COUNT + j], a);
       }
-      acc[m] = a;
+      acc[m] += a;
     }
     barrier(CLK_LOCAL_MEM_FENCE);  // free for the next step
   }
