@@ -11,10 +11,10 @@
 //   B_ij = Σ_s w_s Y_i(ω_s) ρ_c(q_s) T_j(q_s),  i < OUT_COUNT, j < IN_COUNT   (glossy_bounce)
 // with T(q) the diffuse transport interpolated with barycentrics.
 //
-// Vectorisation: a work-item takes one vertex and its directions BVH_PACKET (16) at a
-// time, as the transport kernels do: the packet is traced with bvh_packet_occluded /
-// bvh_packet_closest, SH are evaluated on float16 directions, and every (i, j) entry keeps
-// one float16 accumulator, so the batched product Yᵀ diag(w V) Y runs 16 lanes wide
+// The packet form (RAY_LANES = 1, a CPU's): a work-item takes one vertex and its directions
+// BVH_PACKET (16) at a time, as the transport kernels do: the packet is traced with
+// bvh_packet_occluded / bvh_packet_closest, SH are evaluated on float16 directions, and every
+// (i, j) entry keeps one float16 accumulator, so the batched product Yᵀ diag(w V) Y runs 16 lanes wide
 // (PoCL turns explicit vector types into AVX-512). The lanes are summed in a fixed order
 // at the end: deterministic, and no launch sums more than the directions it was given
 // (at most 1024: the host adds launches in double).
