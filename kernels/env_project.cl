@@ -147,8 +147,8 @@ static inline void store_row(SH_T* acc, __global float* out) {
 
 // Loads lanes c0..c0+VW-1 of an RGB row and weight row that may end before the
 // vector does (columns ≥ n get weight 0 and radiance 0).
-static inline void load_tail(__global const ENV_T* rgbRow, __global const float* codeToLinear, __global const float* wRow,
-                      int c0, int n, SH_T* r, SH_T* g, SH_T* b, SH_T* w) {
+static inline void load_tail(__global const ENV_T* rgbRow, __global const float* codeToLinear,
+                             __global const float* wRow, int c0, int n, SH_T* r, SH_T* g, SH_T* b, SH_T* w) {
   float tr[VW], tg[VW], tb[VW], tw[VW];
   for (int l = 0; l < VW; ++l) {
     int c = c0 + l;
@@ -166,8 +166,8 @@ static inline void load_tail(__global const ENV_T* rgbRow, __global const float*
 }
 
 // Lanes c0..c0+VW-1 of a row: RGB de-interleaved and the weights (solid angles).
-static inline void load_texels(__global const ENV_T* rgbRow, __global const float* codeToLinear, __global const float* wRow,
-                        int c0, int n, SH_T* r, SH_T* g, SH_T* b, SH_T* w) {
+static inline void load_texels(__global const ENV_T* rgbRow, __global const float* codeToLinear,
+                               __global const float* wRow, int c0, int n, SH_T* r, SH_T* g, SH_T* b, SH_T* w) {
   if (c0 + VW <= n) {
     SH_T tr, tg, tb;
     LOAD_RGB(rgbRow + 3 * c0, tr, tg, tb);

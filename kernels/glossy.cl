@@ -59,7 +59,7 @@ typedef BvhNode GlossyNode;  // one ray at a time: the binary BVH (bvh.clh)
 
 // Sample s of the launch in the vertex's frame (t, b, n), and its weight.
 static inline float3 glossy_dir(float3 t, float3 b, float3 n, __global const float* dirsSoA, int paddedCount, int s,
-                                float* weight) {
+                                       float* weight) {
   const float lx = dirsSoA[s], ly = dirsSoA[paddedCount + s], lz = dirsSoA[2 * paddedCount + s];
   *weight = dirsSoA[3 * paddedCount + s];
   return t * lx + b * ly + n * lz;

@@ -186,7 +186,7 @@ __kernel void prefilter_cut(__global const float4* flux, __global const float4* 
 // the level, face size m); each face stores (m + 2)² float4 texels, row 0 and column 0 being
 // the border. (s, t) ∈ [0, 1]² on the face.
 static inline float4 pf_bilinear(__global const float4* chain, __global const int2* levels, int lvl, int face, float s,
-                          float t) {
+                                 float t) {
   const int2 lv = levels[lvl];
   const int m = lv.y, stride = m + 2;
   const float fx = s * m + 0.5f, fy = t * m + 0.5f;  // +1 for the border, −0.5 for texel centres

@@ -51,7 +51,7 @@
 // Adds ρ(q) T^(k)(q) at the hit (tri, u, v) to acc (tri < 0: no hit). Barycentrics may
 // stray by BVH_EDGE_EPS outside the triangle: clamped and renormalised.
 static inline void bounce_gather(int tri, float u, float v, __global const int4* indices, __global const float4* albedo,
-                          __global const float* prev, float* acc) {
+                                 __global const float* prev, float* acc) {
   if (tri < 0) return;
   const float3 bw = bvh_hit_weights(u, v);
   const float w = bw.x;

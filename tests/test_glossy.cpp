@@ -191,8 +191,8 @@ TEST_CASE("Kernel against the double-precision reference on the same rays", "[gl
       if (d > kReferenceTol) ++over;
       worst = std::max(worst, d);
     }
-    INFO(no << " x " << ni << ", lanes " << lanes << ": " << over << " of " << scene.vertexCount() << " vertices beyond " << kReferenceTol
-            << ", worst " << worst);
+    INFO(no << " x " << ni << ", lanes " << lanes << ": " << over << " of " << scene.vertexCount() << " vertices beyond "
+            << kReferenceTol << ", worst " << worst);
     CHECK(double(over) <= kDisagreeing * double(scene.vertexCount()));
     CHECK(worst < kOneRay);
   }

@@ -95,7 +95,9 @@ class Runtime {
   cl::LocalSpaceArg laneSumMemory(size_t lanes) const { return cl::Local(loopLocalSize(lanes) * sizeof(float)); }
   // The local memory of kernels/lanes.clh's blocked-ray masks in such a kernel: LANES_LAUNCH_UINTS
   // (32) uints, a launch's 1024 rays, per item of the group.
-  cl::LocalSpaceArg laneMaskMemory(size_t lanes) const { return cl::Local(loopLocalSize(lanes) / lanes * 32 * sizeof(uint32_t)); }
+  cl::LocalSpaceArg laneMaskMemory(size_t lanes) const {
+    return cl::Local(loopLocalSize(lanes) / lanes * 32 * sizeof(cl_uint));
+  }
   // Enqueues such a kernel over items first … first + count − 1, `lanes` work-items each
   // (item i: work-items lanes·i … lanes·i + lanes − 1), in groups of loopLocalSize(lanes) (the
   // last one part-filled: the kernel skips ids past its item count).

@@ -32,7 +32,8 @@ constexpr double kMaskBytes = 256.0 * 1024 * 1024;
 // Rays per 16-bit mask word of the scalar kernels (LANES_MASK_BITS in kernels/lanes.clh; a
 // packet kernel's word holds a packet).
 constexpr int kScalarMaskBits = 16;
-static_assert(detail::kTransportSampleChunk <= 1024, "a launch's rays fit the lane form's mask (Runtime::laneMaskMemory)");
+static_assert(detail::kTransportSampleChunk <= 1024,
+              "a launch's rays fit the lane form's mask (Runtime::laneMaskMemory)");
 
 // The scene on the device and the kernels over lists of vertices. Each call takes
 // `samples` directions per vertex (the samples-point set of the seed and sampler) in
