@@ -22,12 +22,12 @@ int main(int argc, char** argv) try {
     return 2;
   }
   std::string device, extra;
-  for (int i = 2; i + 1 < argc; i += 2) {
+  for (int i = 2; i < argc; i += 2) {
     const std::string a = argv[i];
-    if (a == "--device") device = argv[i + 1];
-    else if (a == "--extra") extra = argv[i + 1];
+    if (i + 1 < argc && a == "--device") device = argv[i + 1];
+    else if (i + 1 < argc && a == "--extra") extra = argv[i + 1];
     else {
-      std::fprintf(stderr, "bench_kernels: unknown option %s\n", a.c_str());
+      std::fprintf(stderr, "bench_kernels: unknown option or no value: %s\n", a.c_str());
       return 2;
     }
   }

@@ -74,7 +74,7 @@ struct GlossyOptions {
   // 2, 4, 8, 16 or 32, the lane form (each work-item traces one ray of a step and sums its
   // share of the matrix entries: a GPU's). −1: by the device (detail::rayLanesFor: 1 on a
   // CPU, 32 elsewhere). The results agree up to float summation order; the lane form's do not
-  // depend on the lane count or the work-group size.
+  // depend on the work-group size.
   int rayLanes = -1;
 };
 

@@ -16,6 +16,9 @@ enum class PrefilterLobe;
 
 namespace prtbake::detail {
 
+// " -DRAY_LANES=L" for the one-ray kernels' work-items per item (kernels/lanes.clh), nothing for 1.
+inline std::string rayLanesOption(int lanes) { return lanes > 1 ? " -DRAY_LANES=" + std::to_string(lanes) : ""; }
+
 // env_project.cl: SH order, vector width (1, 8, 16) and texel storage.
 std::string envProjectOptions(int order, int vectorWidth, EnvStorage storage);
 // lut.cl

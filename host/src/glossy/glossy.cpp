@@ -89,7 +89,7 @@ namespace detail {
 std::string glossyOptions(int orderOut, int orderIn, bool visibility, int rayLanes) {
   return "-DSH_ORDER=" + std::to_string(std::max(orderOut, orderIn)) + " -DOUT_ORDER=" + std::to_string(orderOut) +
          " -DIN_ORDER=" + std::to_string(orderIn) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
-         (rayLanes > 1 ? " -DRAY_LANES=" + std::to_string(rayLanes) : "");
+         rayLanesOption(rayLanes);
 }
 
 TransportOptions glossyTransportOptions(const GlossyOptions& o) {

@@ -327,7 +327,7 @@ int fillInvalidProbes(ProbeGridResult& g) {
 
 std::string detail::probesOptions(int order, int envOrder, int packetWidth, int rayLanes) {
   return "-DPROBE_ORDER=" + std::to_string(order) + " -DENV_ORDER=" + std::to_string(envOrder) +
-         " -DBVH_PACKET=" + std::to_string(packetWidth) + (rayLanes > 1 ? " -DRAY_LANES=" + std::to_string(rayLanes) : "");
+         " -DBVH_PACKET=" + std::to_string(packetWidth) + rayLanesOption(rayLanes);
 }
 
 ProbeGridLayout probeGridLayout(const Mesh& mesh, const ProbeOptions& o) {

@@ -482,7 +482,7 @@ void standardErrors(const std::vector<double>& t0, const std::vector<double>& vi
 std::string detail::transportOptions(int order, bool visibility, int channels, int packetWidth, int rayLanes) {
   return "-DSH_ORDER=" + std::to_string(order) + " -DVISIBILITY=" + (visibility ? "1" : "0") +
          " -DCHANNELS=" + std::to_string(channels) + " -DBVH_PACKET=" + std::to_string(packetWidth) +
-         (rayLanes > 1 ? " -DRAY_LANES=" + std::to_string(rayLanes) : "");
+         rayLanesOption(rayLanes);
 }
 
 namespace {
