@@ -14,6 +14,7 @@
 #include "confine.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "prtbake/mesh.h"
 
 namespace prtbake::jobs {
 namespace fs = std::filesystem;
@@ -41,39 +42,18 @@ bool validId(const std::string& id) {
   });
 }
 
-// The files a glTF or GLB (by its extension, any case, as loadMesh dispatches) names by URI
-// (buffers and images; not data: URIs), decoded (%XX) and resolved against its directory as
-// the loader resolves them. Empty when the file cannot be read or parsed: the loader reports
-// that when the job runs.
+// The files a glTF or GLB (by its extension, any case, as loadMesh dispatches) names by URI,
+// resolved against its directory (an absolute URI as itself: refused unless it is inside a
+// root, though the loader would join it to the directory). Empty when the file cannot be read
+// or parsed: the loader reports that when the job runs.
 std::vector<std::string> gltfExternalFiles(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (auto& c : ext) c = char(std::tolower(uint8_t(c)));
   if (ext != ".gltf" && ext != ".glb") return {};
   std::vector<std::string> files;
   try {
-    std::string text = readFile(path);
-    if (text.size() >= 20 && text.compare(0, 4, "glTF") == 0) {  // GLB: the JSON chunk (the first)
-      const uint32_t length = uint32_t(uint8_t(text[12])) | uint32_t(uint8_t(text[13])) << 8 |
-                              uint32_t(uint8_t(text[14])) << 16 | uint32_t(uint8_t(text[15])) << 24;
-      text = text.substr(20, std::min<size_t>(length, text.size() - 20));
-    }
-    const json doc = json::parse(text);
-    for (const char* key : {"buffers", "images"})
-      if (doc.contains(key) && doc[key].is_array())
-        for (const auto& item : doc[key])
-          if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
-            const std::string uri = item["uri"].get<std::string>();
-            if (uri.rfind("data:", 0) == 0) continue;
-            std::string decoded;
-            for (size_t i = 0; i < uri.size(); ++i)
-              if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uint8_t(uri[i + 1])) && std::isxdigit(uint8_t(uri[i + 2]))) {
-                decoded += char(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
-                i += 2;
-              } else {
-                decoded += uri[i];
-              }
-            files.push_back((fs::path(path).parent_path() / decoded).lexically_normal().string());
-          }
+    for (const auto& [key, uri] : gltfExternalUris(readFile(path)))
+      files.push_back((fs::path(path).parent_path() / uri).lexically_normal().string());
   } catch (const std::exception&) {
   }
   return files;

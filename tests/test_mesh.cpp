@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "test_common.h"
 
 using namespace prtbake;
+namespace fs = std::filesystem;
 
 namespace {
 // Loader arithmetic is float: transformed positions and renormalised normals carry a
@@ -245,6 +247,55 @@ TEST_CASE("Mesh loaders reject bad input with the file name", "[mesh]") {
   expectInputError(dir + "/garbage.glb", "");
   writeText(dir + "/x.ply", "ply\n");
   expectInputError(dir + "/x.ply", "unknown mesh format");
+}
+
+// A glTF (text, or GLB when `glb`) whose one triangle's positions come from an external
+// buffer (36 bytes) named by `uri`, or an image named by it when `image`.
+static std::string externalGltf(const std::string& dir, const std::string& name, const std::string& uri, bool glb,
+                                bool image = false) {
+  const std::string buffer = image ? R"("buffers": [{"uri": "tri.bin", "byteLength": 36}], "images": [{"uri": ")" + uri + R"("}],)"
+                                   : R"("buffers": [{"uri": ")" + uri + R"(", "byteLength": 36}],)";
+  std::string json = R"({"asset": {"version": "2.0"}, )" + buffer + R"(
+    "bufferViews": [{"buffer": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]})";
+  const std::string path = dir + "/" + name + (glb ? ".glb" : ".gltf");
+  if (glb) {
+    while (json.size() % 4) json += ' ';
+    auto le32 = [](uint32_t v) { return std::string{char(v), char(v >> 8), char(v >> 16), char(v >> 24)}; };
+    writeText(path, "glTF" + le32(2) + le32(uint32_t(20 + json.size())) + le32(uint32_t(json.size())) + "JSON" + json);
+  } else {
+    writeText(path, json);
+  }
+  return path;
+}
+
+// tinygltf reads a directory named by a URI as a file of size 2^63 (std::bad_alloc), so the
+// loader refuses one first, in a GLB too, and decodes the URI as tinygltf does ('+' a space,
+// %XX): a check on the URI as written missed "a%20dir" and "a+dir" (seen: bad_alloc).
+TEST_CASE("glTF loader: an external file that is not a regular file is refused, however its URI is written", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-uri");
+  for (const char* d : {"/plain", "/a dir"}) fs::create_directories(dir + d);
+  const float tri[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  writeText(dir + "/x y.bin", std::string(reinterpret_cast<const char*>(tri), sizeof tri));
+  writeText(dir + "/tri.bin", std::string(reinterpret_cast<const char*>(tri), sizeof tri));
+  for (bool glb : {false, true}) {
+    INFO((glb ? "GLB" : "glTF"));
+    // The decoding is tinygltf's: these load the file "x y.bin".
+    int good = 0;
+    for (const char* uri : {"x%20y.bin", "x+y.bin", "x%20y%2ebin"})
+      CHECK(loadMesh(externalGltf(dir, "good" + std::to_string(++good), uri, glb)).vertexCount() == 3);
+    expectInputError(externalGltf(dir, "plain", "plain", glb), "buffers uri 'plain' is not a regular file");
+    expectInputError(externalGltf(dir, "percent", "a%20dir", glb), "buffers uri 'a dir' is not a regular file");
+    expectInputError(externalGltf(dir, "plus", "a+dir", glb), "buffers uri 'a dir' is not a regular file");
+    expectInputError(externalGltf(dir, "image", "plain", glb, true), "images uri 'plain' is not a regular file");
+  }
+  const auto uris = gltfExternalUris(R"({"buffers": [{"uri": "data:,x"}, {"uri": "%2e%2E/a+b%zz%4"}, {"uri": 3}],
+                                        "images": [{"uri": "c.png"}]})");
+  REQUIRE(uris.size() == 2);
+  CHECK((uris[0].key == "buffers" && uris[0].uri == std::string("../a b\0%4", 9)));
+  CHECK((uris[1].key == "images" && uris[1].uri == "c.png"));
+  CHECK(gltfExternalUris("not json").empty());
 }
 
 TEST_CASE("OBJ loader: the number check judges each token as strtod and strtoll read it", "[mesh]") {

@@ -1,7 +1,10 @@
-// glTF 2.0 reading shared by the mesh loader and the transport glTF copy's reader (io/gltf.h).
-#include <cstdint>
+// glTF 2.0 reading shared by the mesh loader and the transport glTF copy's reader (io/gltf.h), and
+// the external files a glTF names (prtbake/mesh.h: also the job runner's confinement check).
+#include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cstring>
+#include <string_view>
 #include <sstream>
 #include <nlohmann/json.hpp>
 #include <sys/stat.h>
@@ -10,6 +13,7 @@
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
+#include "prtbake/mesh.h"
 
 namespace prtbake {
 namespace detail {
@@ -38,6 +42,13 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
       throw InputError(path, std::string("not a valid glTF 2.0 file: ") + e.what());
     }
   };
+  // External buffer and image files must be regular files: tinygltf would try to read a
+  // directory as a file of size 2^63 (std::bad_alloc). It joins a URI to the directory as text.
+  for (const auto& [key, uri] : gltfExternalUris(bytes)) {
+    struct stat st {};
+    if (::stat((baseDir + "/" + uri).c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+      throw InputError(path, key + " uri '" + uri + "' is not a regular file");
+  }
   bool ok;
   if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
     // The GLB header's version field (bytes 4..7, little-endian) is 2 for glTF 2.0;
@@ -52,24 +63,6 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
                                          unsigned(bytes.size()), baseDir);
     });
   } else {
-    // External buffer and image files must be regular files: tinygltf would try to
-    // read a directory as a file of size 2^63.
-    try {
-      const auto doc = nlohmann::json::parse(bytes);
-      for (const char* key : {"buffers", "images"})
-        if (doc.contains(key) && doc[key].is_array())
-          for (const auto& item : doc[key])
-            if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
-              const std::string uri = item["uri"].get<std::string>();
-              if (uri.rfind("data:", 0) == 0) continue;
-              struct stat st {};
-              const std::string file = baseDir + "/" + uri;
-              if (::stat(file.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
-                throw InputError(path, std::string(key) + " uri '" + uri + "' is not a regular file");
-            }
-    } catch (const nlohmann::json::exception&) {
-      // not JSON: tinygltf reports the syntax error below
-    }
     ok = guarded([&] { return loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), baseDir); });
   }
   if (!ok) {
@@ -77,6 +70,49 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
     throw InputError(path, "not a valid glTF 2.0 file: " + (err.empty() ? std::string("parse error") : err));
   }
 }
+
+}  // namespace detail
+
+std::vector<GltfUri> gltfExternalUris(const std::string& bytes) {
+  std::string_view text = bytes;
+  if (text.size() >= 20 && text.compare(0, 4, "glTF") == 0) {  // GLB: the JSON chunk (the first)
+    const uint32_t length = uint32_t(uint8_t(text[12])) | uint32_t(uint8_t(text[13])) << 8 |
+                            uint32_t(uint8_t(text[14])) << 16 | uint32_t(uint8_t(text[15])) << 24;
+    text = text.substr(20, std::min<size_t>(length, text.size() - 20));
+  }
+  std::vector<GltfUri> uris;
+  try {
+    const auto doc = nlohmann::json::parse(text);
+    for (const char* key : {"buffers", "images"})
+      if (doc.contains(key) && doc[key].is_array())
+        for (const auto& item : doc[key])
+          if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
+            const std::string uri = item["uri"].get<std::string>();
+            if (uri.rfind("data:", 0) == 0) continue;
+            // As tinygltf decodes it (its urldecode): '+' a space, '%' and the next two characters a
+            // byte, a character that is no hex digit counting as 0.
+            auto nibble = [](char c) {
+              return std::isdigit(uint8_t(c)) ? c - '0' : std::isxdigit(uint8_t(c)) ? std::tolower(uint8_t(c)) - 'a' + 10 : 0;
+            };
+            std::string decoded;
+            for (size_t i = 0; i < uri.size(); ++i)
+              if (uri[i] == '+') {
+                decoded += ' ';
+              } else if (uri[i] == '%' && i + 2 < uri.size()) {
+                decoded += char(nibble(uri[i + 1]) << 4 | nibble(uri[i + 2]));
+                i += 2;
+              } else {
+                decoded += uri[i];
+              }
+            uris.push_back({key, decoded});
+          }
+  } catch (const nlohmann::json::exception&) {
+    // not JSON: the loader reports the syntax error
+  }
+  return uris;
+}
+
+namespace detail {
 
 std::vector<int> gltfRootNodes(const tinygltf::Model& model) {
   if (!model.scenes.empty()) {
