@@ -66,7 +66,7 @@ int runSubmit(const CommandLine& cl) {
   if (!cl.has("tasks")) throw UsageError("submit", "missing --tasks N");
   const long n = cl.getInt("tasks", 0, 1, 100000);
   const fs::path jobFile = fs::absolute(cl.positional[1]).lexically_normal();
-  if (!fs::is_regular_file(jobFile)) throw InputError(jobFile.string(), "no such job file");
+  inputFileSize(jobFile.string());  // missing, a directory, a pipe: one error naming it
   const std::string stem = jobFile.stem().string();
   const fs::path dir = cl.has("script-dir") ? fs::absolute(cl.get("script-dir")).lexically_normal()
                                             : jobFile.parent_path() / (".prtbake-slurm-" + stem);

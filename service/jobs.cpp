@@ -42,23 +42,6 @@ bool validId(const std::string& id) {
   });
 }
 
-// The files a glTF or GLB (by its extension, any case, as loadMesh dispatches) names by URI,
-// resolved against its directory (an absolute URI as itself: refused unless it is inside a
-// root, though the loader would join it to the directory). Empty when the file cannot be read
-// or parsed: the loader reports that when the job runs.
-std::vector<std::string> gltfExternalFiles(const std::string& path) {
-  std::string ext = fs::path(path).extension().string();
-  for (auto& c : ext) c = char(std::tolower(uint8_t(c)));
-  if (ext != ".gltf" && ext != ".glb") return {};
-  std::vector<std::string> files;
-  try {
-    for (const auto& [key, uri] : gltfExternalUris(readFile(path)))
-      files.push_back((fs::path(path).parent_path() / uri).lexically_normal().string());
-  } catch (const std::exception&) {
-  }
-  return files;
-}
-
 class JobValidator {
  public:
   JobValidator(Job& job, const fs::path& baseDir, const Confinement* confinement)
@@ -121,9 +104,11 @@ class JobValidator {
   bool confinedInput(const std::string& key, const std::string& path) {
     if (!confinement_) return true;
     std::string why = confinement_->checkInput(path);
+    // An absolute URI is checked as itself (the loader would join it to the directory).
     if (why.empty())
-      for (const auto& file : gltfExternalFiles(path))
-        if (why = confinement_->checkInput(file); !why.empty()) break;
+      for (const auto& uri : gltfExternalUris(path))
+        if (why = confinement_->checkInput((fs::path(path).parent_path() / uri).lexically_normal().string()); !why.empty())
+          break;
     if (!why.empty()) problem(key, why);
     return why.empty();
   }

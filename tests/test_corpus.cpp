@@ -60,6 +60,19 @@ std::vector<std::string> lines(const std::string& text) {
   return out;
 }
 
+// A named pipe (opening it for reading waits for a writer) or a link to /dev/zero (reading
+// it never ends, and its size is 0) at `path`: before 7 December `env` on either hung, on
+// the pipe in open() and on /dev/zero growing its buffer without end.
+std::string nonRegularFile(const std::string& path, bool fifo) {
+  fs::create_directories(fs::path(path).parent_path());
+  fs::remove(path);
+  if (fifo)
+    REQUIRE(runShell("mkfifo '" + path + "'").exitCode == 0);
+  else
+    fs::create_symlink("/dev/zero", path);
+  return path;
+}
+
 void writeWhiteLatLong(const std::string& path) {
   const std::vector<float> one(8 * 4, 1.0f);
   ExrWriteOptions o;
@@ -83,10 +96,12 @@ TEST_CASE("corpus: env fails cleanly on every bad image", "[corpus]") {
   const std::string dir = tempDir("corpus-env");
   std::vector<std::string> inputs = corpusFiles({".exr", ".hdr", ".png", ".jpg"});
   REQUIRE(inputs.size() >= 25);
-  for (const char* ext : {".exr", ".hdr"}) {  // a directory where a file is expected
+  for (const char* ext : {".exr", ".hdr"}) {  // a directory, a pipe, a device where a file is expected
     const std::string d = dir + "/in/directory" + ext;
     fs::create_directories(d);
     inputs.push_back(d);
+    inputs.push_back(nonRegularFile(dir + "/in/fifo" + ext, true));
+    inputs.push_back(nonRegularFile(dir + "/in/zero" + ext, false));
   }
   for (const auto& input : inputs) {
     INFO(input);
@@ -136,6 +151,8 @@ TEST_CASE("corpus: transport jobs fail cleanly on every bad mesh", "[corpus]") {
   REQUIRE(inputs.size() >= 20);
   fs::create_directories(dir + "/in/directory.glb");
   inputs.push_back(dir + "/in/directory.glb");
+  inputs.push_back(nonRegularFile(dir + "/in/fifo.obj", true));
+  inputs.push_back(nonRegularFile(dir + "/in/zero.glb", false));
   expectTransportJobsFailCleanly(dir, inputs);
 }
 
@@ -174,6 +191,37 @@ TEST_CASE("corpus: run fails cleanly on every bad job file, naming it on every l
   INFO(r.output);
   CHECK((r.exitCode == 1 || r.exitCode == 2));
   CHECK(r.output.rfind("prtbake: error: " + dir + "/directory.json", 0) == 0);
+}
+
+// The readers outside env and the mesh loaders: one error naming the file, exit 1, at once.
+TEST_CASE("corpus: every other input refuses a pipe or a device, naming it", "[corpus]") {
+  const std::string dir = tempDir("corpus-nonregular");
+  {
+    std::ofstream tri(dir + "/tri.obj");
+    tri << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  }
+  for (bool fifo : {true, false}) {
+    const std::string tag = fifo ? "fifo" : "zero";
+    const std::string json = nonRegularFile(dir + "/" + tag + ".json", fifo);
+    const std::string npy = nonRegularFile(dir + "/" + tag + ".npy", fifo);
+    const std::string out = dir + "/out-" + tag;
+    fs::create_directories(out);
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"rotate '" + json + "' -o '" + out + "/r.json' --euler-zyz 10,20,30", json},
+        {"cpca '" + npy + "' -o '" + out + "/c.npz' --clusters 2 --vectors 1", npy},
+        {"preview mesh '" + dir + "/tri.obj' --transport '" + npy + "' --env '" + json + "' -o '" + out + "/p.png'", npy},
+        {"probes '" + dir + "/tri.obj' --env '" + json + "' -o '" + out + "/probes'", json},
+        {"run '" + json + "'", json},
+        {"submit slurm '" + json + "' --tasks 2 --dry-run", json}};
+    for (const auto& [args, file] : cases) {
+      INFO(args);
+      const CliResult r = runShell(cli() + args + " --quiet");
+      INFO(r.output);
+      CHECK(r.exitCode == 1);
+      CHECK(r.output.find("prtbake: error: " + file + ": not a regular file") != std::string::npos);
+    }
+    CHECK(filesUnder(out).empty());
+  }
 }
 
 TEST_CASE("limits: a header that claims a huge image fails before allocating and states the limit", "[corpus]") {

@@ -290,12 +290,16 @@ TEST_CASE("glTF loader: an external file that is not a regular file is refused, 
     expectInputError(externalGltf(dir, "plus", "a+dir", glb), "buffers uri 'a dir' is not a regular file");
     expectInputError(externalGltf(dir, "image", "plain", glb, true), "images uri 'plain' is not a regular file");
   }
-  const auto uris = gltfExternalUris(R"({"buffers": [{"uri": "data:,x"}, {"uri": "%2e%2E/a+b%zz%4"}, {"uri": 3}],
-                                        "images": [{"uri": "c.png"}]})");
-  REQUIRE(uris.size() == 2);
-  CHECK((uris[0].key == "buffers" && uris[0].uri == std::string("../a b\0%4", 9)));
-  CHECK((uris[1].key == "images" && uris[1].uri == "c.png"));
-  CHECK(gltfExternalUris("not json").empty());
+  // The files read are recorded decoded (their hashes go into sidecars and manifests).
+  const Mesh m = loadMesh(externalGltf(dir, "recorded", "x+y.bin", false));
+  CHECK(m.inputFiles == std::vector<std::string>{dir + "/recorded.gltf", dir + "/x y.bin"});
+  writeText(dir + "/uris.GLTF", R"({"buffers": [{"uri": "data:,x"}, {"uri": "%2e%2E/a+b%zz%4"}, {"uri": 3}],
+                                    "images": [{"uri": "c.png"}]})");
+  CHECK(gltfExternalUris(dir + "/uris.GLTF") == std::vector<std::string>{std::string("../a b\0%4", 9), "c.png"});
+  writeText(dir + "/uris.obj", R"({"buffers": [{"uri": "b.bin"}]})");
+  CHECK(gltfExternalUris(dir + "/uris.obj").empty());
+  writeText(dir + "/bad.gltf", "not json");
+  CHECK(gltfExternalUris(dir + "/bad.gltf").empty());
 }
 
 TEST_CASE("OBJ loader: the number check judges each token as strtod and strtoll read it", "[mesh]") {

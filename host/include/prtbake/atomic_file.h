@@ -47,6 +47,12 @@ int removeStaleTempFiles(const std::string& dir);
 // Reads a whole file; throws InputError naming the file when it cannot be read.
 std::string readFile(const std::string& path);
 
+// The size of the regular file `path` (links followed). Throws InputError naming it when it is
+// missing, a directory, or a device, pipe or socket: reading /dev/zero never ends, opening a FIFO
+// waits for a writer, and their size says nothing about what reading them allocates. Every
+// reader of an input file calls this before it opens the file.
+size_t inputFileSize(const std::string& path);
+
 // The library version, e.g. "0.1.0".
 const char* version();
 

@@ -63,14 +63,11 @@ Mesh loadMesh(const std::string& path);
 // applied; NORMAL, else area- and angle-weighted normals; albedo = baseColorFactor ×
 // COLOR_0 (RGB). Points and lines are ignored.
 Mesh loadGltf(const std::string& path);
-// The files that a glTF text or GLB container (`bytes`, by the GLB magic) names by URI: its
-// buffers' and images' URIs (data: URIs left out), %XX-decoded as the glTF loader decodes them,
-// each with the key that holds it ("buffers" or "images"). Resolving one against the file's
-// directory is the caller's. Empty when the JSON does not parse (the loader reports that).
-struct GltfUri {
-  std::string key, uri;
-};
-std::vector<GltfUri> gltfExternalUris(const std::string& bytes);
+// The files that the .gltf or .glb (by its extension, any case) at `path` names by URI: its
+// buffers' and images' URIs (data: URIs left out), decoded as the loader decodes them ('+' and
+// %XX). Resolving one against the file's directory is the caller's. Empty for another
+// extension, or when the file cannot be read or parsed (loadMesh reports that).
+std::vector<std::string> gltfExternalUris(const std::string& path);
 // OBJ: polygons triangulated; one mesh vertex per distinct (v, vt, vn) triple, as the
 // GAMES202 framework's loader does; albedo 1 (OBJ materials are not read).
 Mesh loadObj(const std::string& path);

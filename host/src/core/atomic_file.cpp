@@ -117,15 +117,21 @@ int removeStaleTempFiles(const std::string& dir) {
   return removed;
 }
 
-std::string readFile(const std::string& path) {
+size_t inputFileSize(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   if (S_ISDIR(st.st_mode)) throw InputError(path, "is a directory, expected a file");
-  checkInputMemory(path, "reading the file (" + std::to_string(st.st_size) + " bytes)", double(st.st_size));
+  if (!S_ISREG(st.st_mode)) throw InputError(path, "not a regular file (a device, pipe or socket), expected a file");
+  return size_t(st.st_size);
+}
+
+std::string readFile(const std::string& path) {
+  const size_t size = inputFileSize(path);
+  checkInputMemory(path, "reading the file (" + std::to_string(size) + " bytes)", double(size));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading");
   // Read into one buffer of the file's size (a string stream would hold two or three copies).
-  std::string bytes(size_t(st.st_size), '\0');
+  std::string bytes(size, '\0');
   in.read(bytes.data(), std::streamsize(bytes.size()));
   bytes.resize(size_t(in.gcount()));
   if (in.bad()) throw InputError(path, "cannot read");

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <vector>
 
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 
 namespace prtbake {
@@ -80,6 +81,7 @@ std::string sha256Hex(const void* data, size_t bytes) {
 }
 
 std::string sha256File(const std::string& path) {
+  inputFileSize(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for hashing");
   Sha256 s;

@@ -6,6 +6,8 @@
 #include <string>
 
 #include "core/constants.h"
+#include "io/gltf.h"
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
 
@@ -30,6 +32,17 @@ bool Mesh::greyAlbedo() const {
 
 std::string Mesh::inputSha256(const std::string& path) const {
   return path == sourcePath && !sourceSha256.empty() ? sourceSha256 : sha256File(path);
+}
+
+std::vector<std::string> gltfExternalUris(const std::string& path) {
+  const std::string ext = lowerExtension(path);  // as loadMesh dispatches
+  if (ext != "gltf" && ext != "glb") return {};
+  std::vector<std::string> uris;
+  try {
+    for (const auto& u : detail::gltfUris(readFile(path))) uris.push_back(u.uri);
+  } catch (const std::exception&) {
+  }
+  return uris;
 }
 
 Mesh loadMesh(const std::string& path) {

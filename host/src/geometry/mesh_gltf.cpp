@@ -254,19 +254,12 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
 
 Mesh loadGltf(const std::string& path) {
   tinygltf::Model model;
-  detail::loadGltfModel(path, model);
+  std::vector<std::string> external;
+  detail::loadGltfModel(path, model, &external);
   Mesh mesh;
   mesh.sourcePath = path;
   mesh.inputFiles = {path};
-  {
-    const auto slash = path.find_last_of('/');
-    const std::string dir = slash == std::string::npos ? std::string(".") : path.substr(0, slash);
-    auto external = [&](const std::string& uri) {
-      if (!uri.empty() && uri.rfind("data:", 0) != 0) mesh.inputFiles.push_back(dir + "/" + uri);
-    };
-    for (const auto& b : model.buffers) external(b.uri);
-    for (const auto& im : model.images) external(im.uri);
-  }
+  mesh.inputFiles.insert(mesh.inputFiles.end(), external.begin(), external.end());
   mesh.format = Mesh::Format::Gltf;
   std::vector<char> onPath(model.nodes.size(), 0);
   std::function<void(int, const Mat4&)> walk = [&](int ni, const Mat4& parent) {

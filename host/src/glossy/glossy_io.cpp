@@ -39,6 +39,7 @@ int orderOfCount(size_t count) {
 // A transfer-matrix .npy's header, parsed and its shape checked before any data is read
 // (a lying shape costs an error, not an allocation). Sets `g`'s shape fields and dtype.
 npy::Header readMatrixHeader(const std::string& path, GlossyMatrices& g) {
+  inputFileSize(path);
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   std::string head(65536 + 12, '\0');

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <memory>
 
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 
 namespace prtbake::detail {
@@ -79,11 +80,9 @@ constexpr size_t kHeaderBytes = size_t(64) << 20;
 
 // The first `most` bytes of the file, and its size.
 std::string readPrefix(const std::string& path, size_t most, size_t* fileSize) {
+  *fileSize = inputFileSize(path);
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  struct stat st {};
-  if (!f || ::fstat(::fileno(f.get()), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  if (S_ISDIR(st.st_mode)) throw InputError(path, "is a directory, expected a file");
-  *fileSize = size_t(st.st_size);
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   std::string b(std::min(most, *fileSize), '\0');
   b.resize(std::fread(b.data(), 1, b.size(), f.get()));
   if (std::ferror(f.get())) throw InputError(path, std::string("cannot read: ") + std::strerror(errno));

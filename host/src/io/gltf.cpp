@@ -1,5 +1,4 @@
-// glTF 2.0 reading shared by the mesh loader and the transport glTF copy's reader (io/gltf.h), and
-// the external files a glTF names (prtbake/mesh.h: also the job runner's confinement check).
+// glTF 2.0 reading shared by the mesh loader and the transport glTF copy's reader (io/gltf.h).
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
@@ -13,7 +12,6 @@
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
-#include "prtbake/mesh.h"
 
 namespace prtbake {
 namespace detail {
@@ -24,7 +22,7 @@ bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int
 }
 }  // namespace
 
-void loadGltfModel(const std::string& path, tinygltf::Model& model) {
+void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<std::string>* files) {
   const std::string bytes = readFile(path);
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(skipImage, nullptr);
@@ -44,9 +42,11 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
   };
   // External buffer and image files must be regular files: tinygltf would try to read a
   // directory as a file of size 2^63 (std::bad_alloc). It joins a URI to the directory as text.
-  for (const auto& [key, uri] : gltfExternalUris(bytes)) {
+  std::vector<std::string> external;
+  for (const auto& [key, uri] : gltfUris(bytes)) {
     struct stat st {};
-    if (::stat((baseDir + "/" + uri).c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    external.push_back(baseDir + "/" + uri);
+    if (::stat(external.back().c_str(), &st) == 0 && !S_ISREG(st.st_mode))
       throw InputError(path, key + " uri '" + uri + "' is not a regular file");
   }
   bool ok;
@@ -69,11 +69,10 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model) {
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
     throw InputError(path, "not a valid glTF 2.0 file: " + (err.empty() ? std::string("parse error") : err));
   }
+  if (files) *files = std::move(external);
 }
 
-}  // namespace detail
-
-std::vector<GltfUri> gltfExternalUris(const std::string& bytes) {
+std::vector<GltfUri> gltfUris(const std::string& bytes) {
   std::string_view text = bytes;
   if (text.size() >= 20 && text.compare(0, 4, "glTF") == 0) {  // GLB: the JSON chunk (the first)
     const uint32_t length = uint32_t(uint8_t(text[12])) | uint32_t(uint8_t(text[13])) << 8 |
@@ -111,8 +110,6 @@ std::vector<GltfUri> gltfExternalUris(const std::string& bytes) {
   }
   return uris;
 }
-
-namespace detail {
 
 std::vector<int> gltfRootNodes(const tinygltf::Model& model) {
   if (!model.scenes.empty()) {

@@ -10,8 +10,9 @@
 namespace prtbake::detail {
 
 // Loads .gltf (with external or data-URI buffers) or .glb (by magic, not by
-// extension) without decoding images. Throws InputError(path, ...) on failure.
-void loadGltfModel(const std::string& path, tinygltf::Model& model);
+// extension) without decoding images. Throws InputError(path, ...) on failure. `files`, when
+// given, receives the external files it read (buffers, then images), as the loader named them.
+void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<std::string>* files = nullptr);
 
 // Reads `comps` components per element of accessor `index` as doubles (normalised
 // integers mapped to [0, 1] or [−1, 1]). Every number the file gives is checked
@@ -28,6 +29,14 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
 // extension is .glb (any case), else .gltf text with every buffer embedded as a data URI (the
 // model's buffer URIs are cleared). Throws OutputError(path, ...) when tinygltf cannot write it.
 std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path);
+
+// The URIs that a glTF text or GLB container (`bytes`, by the GLB magic) names: its buffers'
+// and images' (data: URIs left out), decoded as tinygltf decodes them, each with the key that
+// holds it ("buffers" or "images"). Empty when the JSON does not parse (the loader reports that).
+struct GltfUri {
+  std::string key, uri;
+};
+std::vector<GltfUri> gltfUris(const std::string& bytes);
 
 // The nodes to walk: the default scene's roots, scene 0's, or every root node.
 std::vector<int> gltfRootNodes(const tinygltf::Model& model);

@@ -27,6 +27,7 @@
 #include <mutex>
 #include <thread>
 
+#include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
 #include "io/stb_decode.h"
@@ -35,11 +36,10 @@ namespace prtbake::detail {
 namespace {
 
 std::vector<unsigned char> readWholeFile(const std::string& path) {
+  const size_t size = inputFileSize(path);
+  checkInputMemory(path, "reading the file (" + std::to_string(size) + " bytes)", double(size));
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
   if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(::fileno(f.get()), &st) == 0)
-    checkInputMemory(path, "reading the file (" + std::to_string(st.st_size) + " bytes)", double(st.st_size));
   std::vector<unsigned char> bytes;
   unsigned char buf[1 << 16];
   size_t n;
@@ -253,6 +253,7 @@ void ExrRowReader::guard(const std::function<void()>& f) {
 }
 
 bool isOpenExr(const std::string& path) {
+  inputFileSize(path);
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
   if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
   unsigned char b[4] = {0, 0, 0, 0};
