@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "job_test_helpers.h"
+#include "prtbake/error.h"
 
 using namespace prtbake;
 using namespace prtbake::test;
@@ -299,4 +300,38 @@ TEST_CASE("atomic writes never follow a link planted at the temp name", "[confin
   CHECK(readText(dir + "/victim") == "unchanged");
   CHECK(readText(dir + "/out.txt") == "written");
   CHECK(fs::is_symlink(planted));
+}
+
+// The finished file is renamed into place, so a destination that is a device, a named pipe or
+// a directory (or a link to one) would be replaced by a file: on 7 December `prtbake lut -o
+// /dev/null`, run as root, left a regular file at /dev/null. Refused before the temp file is
+// made, the node left as it was. (Links to /dev/null inside the test's folder: a failing check
+// replaces the link, never the device.)
+TEST_CASE("atomic writes refuse a destination that is not a regular file, and leave it as it was", "[confine]") {
+  const std::string dir = tempDir("atomic-nonregular");
+  REQUIRE(runShell("mkfifo '" + dir + "/fifo'").exitCode == 0);
+  fs::create_symlink("/dev/null", dir + "/null");
+  fs::create_symlink(dir + "/fifo", dir + "/fifo-link");
+  fs::create_directories(dir + "/directory");
+  for (const char* name : {"null", "fifo", "fifo-link", "directory"}) {
+    INFO(name);
+    const std::string path = dir + "/" + name;
+    const auto before = fs::symlink_status(path).type();
+    try {
+      writeFileAtomic(path, "written");
+      FAIL("no error");
+    } catch (const OutputError& e) {
+      CHECK(e.subject() == path);
+      CHECK(std::string(e.what()).find(std::string(name) == "directory" ? "is a directory" : "not a regular file") !=
+            std::string::npos);
+    }
+    CHECK(fs::symlink_status(path).type() == before);
+  }
+  size_t entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
+  CHECK(entries == 4);  // no temp file left
+  writeText(dir + "/target", "old");  // a link to a regular file is written over, as before
+  fs::create_symlink(dir + "/target", dir + "/file-link");
+  writeFileAtomic(dir + "/file-link", "new");
+  CHECK(readText(dir + "/file-link") == "new");
 }

@@ -5,7 +5,9 @@
 // directory. An AtomicFile destroyed without commit() removes its temp file, so a
 // failed job leaves nothing behind. A killed process may leave a temp file; the
 // names are recognisable so that the next run can remove them
-// (removeStaleTempFiles).
+// (removeStaleTempFiles). A destination that exists and is not a regular file (links
+// followed: a directory, a device such as /dev/null, a named pipe, /dev/stdout) is refused
+// when the AtomicFile is made: the rename would replace it with a file.
 #pragma once
 
 #include <cstddef>

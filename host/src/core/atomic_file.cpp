@@ -41,6 +41,13 @@ const char* version() { return PRTBAKE_VERSION; }
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   if (path_.empty()) throw OutputError("output", "empty output path");
+  // The finished file is renamed into place, which would put a file where a device such as
+  // /dev/null, a named pipe or the link /dev/stdout was (and fail on a directory only then).
+  struct stat st {};
+  if (::stat(path_.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    throw OutputError(path_, S_ISDIR(st.st_mode) ? "is a directory, expected a file"
+                                                 : "not a regular file (a device, pipe or socket): an output is written "
+                                                   "whole, then renamed into place");
   // O_EXCL | O_NOFOLLOW: a file or link that someone placed at the predictable temp name is
   // never written through; the next name is tried instead.
   for (int attempt = 0; fd_ < 0; ++attempt) {
