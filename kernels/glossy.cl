@@ -174,15 +174,10 @@ __kernel void glossy_gram(int vertexCount, int sampleCount, __global const float
     PkFrontier front;
     if (trace) pk_frontier(nodes, tris, o, n, tMax, &front);
 #endif
-    const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const int16 lane = PK_LANE_INDEX;
     for (int s = 0; s < sampleCount; s += 16) {
-      const float16 lx = vload16(0, dirsSoA + s);
-      const float16 ly = vload16(0, dirsSoA + paddedCount + s);
-      const float16 lz = vload16(0, dirsSoA + 2 * paddedCount + s);
+      PK_WORLD_DIRS(s);
       const float16 lw = vload16(0, dirsSoA + 3 * paddedCount + s);
-      const float16 dx = t.x * lx + b.x * ly + n.x * lz;
-      const float16 dy = t.y * lx + b.y * ly + n.y * lz;
-      const float16 dz = t.z * lx + b.z * ly + n.z * lz;
       int16 live = (lane + s) < sampleCount;
 #if VISIBILITY
       if (trace) {
@@ -302,19 +297,14 @@ __kernel void glossy_bounce(int vertexCount, int sampleCount, __global const flo
   // A vertex no triangle can reach sees no surface: its term is zero.
   if (dot(n, n) > 0.0f && origins[vi].w == 0.0f) {
     const float3 o = origins[vi].xyz;
-    const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const int16 lane = PK_LANE_INDEX;
     const int tc = diffuseChannels == 3 ? channel : 0;
     PkFrontier front;
     if (hitMode != 2) pk_frontier(nodes, tris, o, n, tMax, &front);
     __global float* kept = hitMode != 0 ? hits + 3 * (size_t)hitStart[(size_t)vi * chunks + chunk] : hits;
     for (int s = 0; s < sampleCount; s += 16) {
-      const float16 lx = vload16(0, dirsSoA + s);
-      const float16 ly = vload16(0, dirsSoA + paddedCount + s);
-      const float16 lz = vload16(0, dirsSoA + 2 * paddedCount + s);
+      PK_WORLD_DIRS(s);
       const float16 lw = vload16(0, dirsSoA + 3 * paddedCount + s);
-      const float16 dx = t.x * lx + b.x * ly + n.x * lz;
-      const float16 dy = t.y * lx + b.y * ly + n.y * lz;
-      const float16 dz = t.z * lx + b.z * ly + n.z * lz;
       int16 live = (lane + s) < sampleCount;
       if (maskWords > 0) {  // only the rays glossy_gram found blocked can hit a surface
         live &= pk_lanes(blocked[(size_t)vi * maskWords + s / 16]);

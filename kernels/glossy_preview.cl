@@ -26,6 +26,7 @@
 #endif
 #define OUT_COUNT (OUT_ORDER * OUT_ORDER)
 #define BG_COUNT (BG_ORDER * BG_ORDER)
+#include "preview.clh"
 
 // camera, nodes, tris, indices, albedo, background, rgb, hit: as preview_mesh (preview.cl)
 // normals:     V × (x, y, z, 0) shading normals
@@ -41,15 +42,9 @@ __kernel void preview_glossy(int width, int height, __global const float4* camer
                              __global float* rgb, __global int* hit) {
   const int pixel = (int)get_global_id(0);
   if (pixel >= width * height) return;
-  const int x = pixel % width, y = pixel / width;
-  const float px = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
-  const float py = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
-  const float3 eye = camera[0].xyz;
-  const float3 d = normalize(camera[1].xyz + px * camera[2].xyz + py * camera[3].xyz);
-  float bu = 0.0f, bv = 0.0f;
-  const float enter = bvh_box_enter(nodes, eye, bvh_safe_inv(d), 3.0e38f);
-  const float3 origin = enter == INFINITY ? eye : eye + fmax(enter - 1e-3f * camera[0].w, 0.0f) * d;
-  const int tri = enter == INFINITY ? -1 : bvh_closest(nodes, tris, origin, d, 3.0e38f, &bu, &bv);
+  float3 d;
+  float bu, bv;
+  const int tri = preview_hit(pixel, width, height, camera, nodes, tris, &d, &bu, &bv);
   float out[3] = {0.0f, 0.0f, 0.0f};
   if (tri >= 0) {
     const int4 idx = indices[tri];
@@ -86,14 +81,8 @@ __kernel void preview_glossy(int width, int height, __global const float4* camer
         }
       out[ch] = rhoc[ch] * s / norm;
     }
-  } else if (SH_BACKGROUND) {
-    float ylm[BG_COUNT];
-    sh_eval(BG_ORDER, d.x, d.y, d.z, ylm);
-    for (int ch = 0; ch < 3; ++ch) {
-      float sum = 0.0f;
-      for (int i = 0; i < BG_COUNT; ++i) sum += background[ch * BG_COUNT + i] * ylm[i];
-      out[ch] = sum;
-    }
+  } else {
+    preview_background(d, background, out);
   }
   rgb[3 * (size_t)pixel] = out[0];
   rgb[3 * (size_t)pixel + 1] = out[1];

@@ -35,6 +35,7 @@
 #endif
 #define SH_COUNT (SH_ORDER * SH_ORDER)
 #define BG_COUNT (BG_ORDER * BG_ORDER)
+#include "preview.clh"
 
 // width, height: image size; pixel (x, y) = work-item y·width + x, row 0 on top
 // camera:    4 float4: (eye, scene radius), forward (unit), right × tan(hfov/2), up × tan(vfov/2)
@@ -53,15 +54,9 @@ __kernel void preview_mesh(int width, int height, __global const float4* camera,
                            __global float* rgb, __global int* hit) {
   const int pixel = (int)get_global_id(0);
   if (pixel >= width * height) return;
-  const int x = pixel % width, y = pixel / width;
-  const float px = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
-  const float py = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
-  const float3 eye = camera[0].xyz;
-  const float3 d = normalize(camera[1].xyz + px * camera[2].xyz + py * camera[3].xyz);
-  float bu = 0.0f, bv = 0.0f;
-  const float enter = bvh_box_enter(nodes, eye, bvh_safe_inv(d), 3.0e38f);
-  const float3 origin = enter == INFINITY ? eye : eye + fmax(enter - 1e-3f * camera[0].w, 0.0f) * d;
-  const int tri = enter == INFINITY ? -1 : bvh_closest(nodes, tris, origin, d, 3.0e38f, &bu, &bv);
+  float3 d;
+  float bu, bv;
+  const int tri = preview_hit(pixel, width, height, camera, nodes, tris, &d, &bu, &bv);
   float out[3] = {0.0f, 0.0f, 0.0f};
   if (tri >= 0) {
     const int4 idx = indices[tri];
@@ -80,14 +75,8 @@ __kernel void preview_mesh(int width, int height, __global const float4* camera,
       }
       out[ch] = rhoc[ch] * sum;
     }
-  } else if (SH_BACKGROUND) {
-    float ylm[BG_COUNT];
-    sh_eval(BG_ORDER, d.x, d.y, d.z, ylm);
-    for (int ch = 0; ch < 3; ++ch) {
-      float sum = 0.0f;
-      for (int i = 0; i < BG_COUNT; ++i) sum += background[ch * BG_COUNT + i] * ylm[i];
-      out[ch] = sum;
-    }
+  } else {
+    preview_background(d, background, out);
   }
   rgb[3 * (size_t)pixel] = out[0];
   rgb[3 * (size_t)pixel + 1] = out[1];

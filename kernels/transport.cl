@@ -227,16 +227,6 @@ __kernel void transport_bounce(int vertexCount, int sampleCount, __global const 
 
 #include "bvh_packet.clh"
 
-// dx, dy, dz: the world directions of samples s … s + BVH_PACKET − 1 (dirsSoA, in the
-// vertex's frame t, b, n).
-#define PK_WORLD_DIRS(s)                                                      \
-  const floatP lx = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + (s));               \
-  const floatP ly = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + paddedCount + (s)); \
-  const floatP lz = PK_CAT(vload, BVH_PACKET)(0, dirsSoA + 2 * paddedCount + (s)); \
-  const floatP dx = t.x * lx + b.x * ly + n.x * lz;                            \
-  const floatP dy = t.y * lx + b.y * ly + n.y * lz;                            \
-  const floatP dz = t.z * lx + b.z * ly + n.z * lz
-
 // Packet form of transport_direct: the N samples of a vertex go through the BVH
 // BVH_PACKET at a time (sampleCount padded up; the padding lanes are dead).
 // dirsSoA: 3 × paddedCount floats, local x then y then z (structure of arrays).
@@ -264,12 +254,7 @@ __kernel void transport_direct_packet(int vertexCount, int sampleCount, __global
     PkFrontier front;
     if (trace) pk_frontier(nodes, tris, o, n, tMax, &front);
 #endif
-    intP lane;
-#if BVH_PACKET == 16
-    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-#else
-    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
-#endif
+    const intP lane = PK_LANE_INDEX;
     for (int s = 0; s < sampleCount; s += BVH_PACKET) {
       PK_WORLD_DIRS(s);
       intP live = (lane + s) < sampleCount;
@@ -344,12 +329,7 @@ __kernel void transport_bounce_packet(int vertexCount, int sampleCount, __global
     const float3 o = origins[vi].xyz;
     PkFrontier front;
     pk_frontier(nodes, tris, o, n, tMax, &front);
-    intP lane;
-#if BVH_PACKET == 16
-    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-#else
-    lane = (intP)(0, 1, 2, 3, 4, 5, 6, 7);
-#endif
+    const intP lane = PK_LANE_INDEX;
     __global float* out = chunks > 0 ? hits + 3 * (size_t)hitStart[(size_t)vi * chunks + chunk] : hits;
     for (int s = 0; s < sampleCount; s += BVH_PACKET) {
       intP live = (lane + s) < sampleCount;
