@@ -192,7 +192,7 @@ InvalidTexels countInvalidTexels(EnvMap& env, bool clamp) {
 InputError invalidTexelsError(const std::string& source, const InvalidTexels& bad) {
   return InputError(source, std::to_string(bad.values) + " invalid values (" + std::to_string(bad.nonFinite) +
                                 " NaN/Inf, " + std::to_string(bad.values - bad.nonFinite) +
-                                " negative); use --clamp-invalid to replace them by 0");
+                                " negative); --clamp-invalid (the key clamp_invalid) replaces them by 0");
 }
 
 }  // namespace detail
