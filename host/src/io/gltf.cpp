@@ -87,7 +87,7 @@ std::vector<GltfUri> gltfUris(const std::string& bytes) {
         for (const auto& item : doc[key])
           if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
             const std::string uri = item["uri"].get<std::string>();
-            if (uri.rfind("data:", 0) == 0) continue;
+            if (uri.empty() || uri.rfind("data:", 0) == 0) continue;  // no file (a GLB's own buffer)
             // As tinygltf decodes it (its urldecode): '+' a space, '%' and the next two characters a
             // byte, a character that is no hex digit counting as 0.
             auto nibble = [](char c) {
