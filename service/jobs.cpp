@@ -215,8 +215,13 @@ class JobValidator {
           continue;
         }
       struct stat st {};
-      if (kind != "dir" && ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {  // "dir": an ibl package
+      if (::stat(path.c_str(), &st) == 0 && kind != "dir" && S_ISDIR(st.st_mode)) {  // "dir": an ibl package
         problem(key, "is a directory: " + path);
+        continue;
+      }
+      // The finished output is renamed into place: it would replace a device or a pipe.
+      if (::stat(path.c_str(), &st) == 0 && !S_ISDIR(st.st_mode) && !S_ISREG(st.st_mode)) {
+        problem(key, "not a regular file (a device, pipe or socket): " + path);
         continue;
       }
       if (!job_.input.empty() && path == job_.input) {

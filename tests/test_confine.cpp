@@ -335,3 +335,25 @@ TEST_CASE("atomic writes refuse a destination that is not a regular file, and le
   writeFileAtomic(dir + "/file-link", "new");
   CHECK(readText(dir + "/file-link") == "new");
 }
+
+// The job runner stages outputs and renames them into place: on 7 December a job with
+// `"exr": "/dev/null"`, run as root, left a regular file at /dev/null and a manifest beside it.
+// An output that exists and is not a regular file (links followed) is refused when the job
+// file is read (outputs here are links to /dev/null inside the test's folder and a pipe: a
+// failing check replaces the link or the pipe, never the device).
+TEST_CASE("job runner: an output that is a device or a pipe is refused before the job runs", "[confine]") {
+  const std::string dir = tempDir("runner-nonregular");
+  fs::create_symlink("/dev/null", dir + "/null.exr");
+  REQUIRE(runShell("mkfifo '" + dir + "/fifo.exr'").exitCode == 0);
+  writeJobFile(dir + "/jobs.json", {lutJob("to-null", "null.exr"), lutJob("to-fifo", "fifo.exr")});
+  const CliResult r = runCli("run '" + dir + "/jobs.json'");
+  INFO(r.output);
+  CHECK(r.exitCode != 0);
+  for (const char* name : {"null.exr", "fifo.exr"}) {
+    CHECK(r.output.find("outputs.exr: not a regular file (a device, pipe or socket): " + dir + "/" + name) !=
+          std::string::npos);
+    CHECK(!fs::exists(dir + "/" + name + ".manifest.json"));
+  }
+  CHECK(fs::is_symlink(dir + "/null.exr"));
+  CHECK(fs::is_fifo(dir + "/fifo.exr"));
+}
