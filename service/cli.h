@@ -72,10 +72,16 @@ std::map<std::string, std::string> keyTexts(const CommandLine& cl);
 
 // The normalised parameters of product `type` from `texts` (default: keyTexts(cl)), checked as
 // a job's are and with the type's rules run on `outputs`, the output kinds this command writes
-// (jobs::paramsFromText); the first problem is a UsageError naming the option.
+// (jobs::paramsFromText); the first problem is a UsageError naming the option. An output that
+// would replace one of `inputs` (default: the positional arguments) or a file that an option
+// names (an environment) is a UsageError naming the output.
 nlohmann::json productParams(const std::string& type, const std::map<std::string, std::string>& texts,
-                             const nlohmann::json& outputs);
+                             const nlohmann::json& outputs, std::vector<std::string> inputs = {});
 nlohmann::json productParams(const CommandLine& cl, const std::string& type, const nlohmann::json& outputs);
+
+// A UsageError naming the first of `outputs` that would replace one of `inputs` (jobs::sameFile):
+// `env sky.hdr -o sky.hdr` wrote its JSON over the image.
+void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs);
 
 }  // namespace prtbake::cli
 

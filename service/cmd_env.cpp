@@ -21,7 +21,9 @@ int runEnv(const CommandLine& cl) {
   const std::string input = cl.positional.at(0);
   const std::string output = cl.get("output");
   if (output.empty()) throw UsageError("env", "missing -o OUT.json");
-  const nlohmann::json p = productParams(cl, "env", {{"json", output}});
+  nlohmann::json outputs = {{"json", output}};
+  if (cl.has("games202")) outputs["games202"] = cl.get("games202");
+  const nlohmann::json p = productParams(cl, "env", outputs);
   EnvProjectOptions po = jobs::envProjectOptionsFrom(p);
   const EnvLoadOptions lo = jobs::envLoadOptionsFrom(p, true);
   const double yaw = p["yaw"].get<double>();

@@ -95,7 +95,7 @@ int runGlossyTransport(const CommandLine& cl) {
   const bool cpca = texts.count("cpca_clusters") || texts.count("cpca_error");
   nlohmann::json outputs = {{"npy", out}, {"json", stem(out) + ".json"}};
   if (cpca) outputs["cpca"] = stem(out) + ".cpca.npz";
-  const nlohmann::json p = productParams("glossy", texts, outputs);
+  const nlohmann::json p = productParams("glossy", texts, outputs, {input});
   GlossyOptions o = jobs::glossyOptionsFrom(p);
   const MatrixDtype dtype = parseMatrixDtype(p["dtype"].get<std::string>());
   const bool brdf = p["brdf"] != "none";
@@ -221,6 +221,7 @@ namespace {
 int runCpca(const CommandLine& cl) {
   const std::string input = cl.positional.at(0), out = cl.get("output");
   if (out.empty()) throw UsageError("cpca", "missing -o OUT.npz");
+  checkOutputsSpareInputs({input}, {out});
   CpcaOptions co;
   if (cl.has("clusters") != cl.has("vectors")) throw UsageError("cpca", "give both --clusters K and --vectors P");
   if (cl.has("clusters") && cl.has("target-error"))

@@ -19,6 +19,12 @@
 namespace prtbake::jobs {
 namespace fs = std::filesystem;
 
+bool sameFile(const std::string& in, const std::string& out) {
+  struct stat a {}, b {};
+  if (::stat(in.c_str(), &a) == 0 && ::stat(out.c_str(), &b) == 0) return a.st_dev == b.st_dev && a.st_ino == b.st_ino;
+  return fs::absolute(in).lexically_normal() == fs::absolute(out).lexically_normal();
+}
+
 namespace {
 
 const std::vector<std::string> kCommonKeys = {"id", "type", "input", "outputs"};
@@ -224,8 +230,14 @@ class JobValidator {
         problem(key, "not a regular file (a device, pipe or socket): " + path);
         continue;
       }
-      if (!job_.input.empty() && path == job_.input) {
-        problem(key, "would overwrite the job's input: " + path);
+      std::vector<std::string> inputs = {job_.input};  // and the files that keys name (an environment)
+      for (const auto& k : t.keys)
+        if (k.kind == ValueKind::Path && params->contains(k.name) && (*params)[k.name].is_string())
+          inputs.push_back((*params)[k.name].get<std::string>());
+      const auto in = std::find_if(inputs.begin(), inputs.end(),
+                                   [&](const std::string& i) { return !i.empty() && sameFile(i, path); });
+      if (in != inputs.end()) {
+        problem(key, "would overwrite the job's input: " + *in);
         continue;
       }
       job_.outputs.push_back({kind, path});

@@ -201,6 +201,10 @@ std::vector<std::string> filesRead(const Job& job, const std::vector<std::string
 // loader took of what it parsed.
 void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also = {});
 
+// Whether writing `out` would replace the input `in`: the same file by device and inode when
+// both exist (a link or another spelling of the path included), else the same absolute path.
+bool sameFile(const std::string& in, const std::string& out);
+
 // Marks jobs (across all files) that write a file another job writes, or whose
 // manifest would collide with another job's file. The first writer keeps it.
 void checkOutputConflicts(std::vector<JobFile>& files);

@@ -230,7 +230,7 @@ std::map<std::string, std::string> keyTexts(const CommandLine& cl) {
 }
 
 nlohmann::json productParams(const std::string& type, const std::map<std::string, std::string>& texts,
-                             const nlohmann::json& outputs) {
+                             const nlohmann::json& outputs, std::vector<std::string> inputs) {
   jobs::KeyProblems problems;
   const jobs::JobType& t = *jobs::findJobType(type);
   nlohmann::json params = jobs::paramsFromText(t, texts, outputs, &problems);
@@ -240,11 +240,24 @@ nlohmann::json productParams(const std::string& type, const std::map<std::string
     std::replace(option.begin(), option.end(), '_', '-');
     throw UsageError(option, what);
   }
+  for (const auto& k : t.keys)
+    if (k.kind == jobs::ValueKind::Path && texts.count(k.name)) inputs.push_back(texts.at(k.name));
+  std::vector<std::string> written;
+  if (outputs.is_object())
+    for (const auto& [kind, out] : outputs.items())
+      if (out.is_string()) written.push_back(out.get<std::string>());
+  checkOutputsSpareInputs(inputs, written);
   return params;
 }
 
+void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
+  for (const auto& out : outputs)
+    for (const auto& in : inputs)
+      if (!in.empty() && !out.empty() && jobs::sameFile(in, out)) throw UsageError(out, "would overwrite the input " + in);
+}
+
 nlohmann::json productParams(const CommandLine& cl, const std::string& type, const nlohmann::json& outputs) {
-  return productParams(type, keyTexts(cl), outputs);
+  return productParams(type, keyTexts(cl), outputs, cl.positional);
 }
 
 void status(const CommandLine& cl, const std::string& text) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "prtbake/exr.h"
+#include "job_test_helpers.h"
 #include "test_common.h"
 
 namespace fs = std::filesystem;
@@ -221,6 +222,47 @@ TEST_CASE("corpus: every other input refuses a pipe or a device, naming it", "[c
       CHECK(r.output.find("prtbake: error: " + file + ": not a regular file") != std::string::npos);
     }
     CHECK(filesUnder(out).empty());
+  }
+}
+
+// An output path that names an input (the same file, by any path or link) is refused before
+// anything is read or written: `env sky.hdr -o sky.hdr` wrote its JSON over the image, and a
+// job's environment key was not compared with its outputs.
+TEST_CASE("an output that names an input is refused, and the input is left as it was", "[corpus]") {
+  const std::string dir = tempDir("corpus-overwrite");
+  {
+    std::ofstream tri(dir + "/tri.obj");
+    tri << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  }
+  writeWhiteLatLong(dir + "/sky.exr");
+  fs::create_symlink("tri.obj", dir + "/same.obj");
+  writeText(dir + "/env.json", "{}");  // the job is refused before it is read
+  const std::string jobs = dir + "/jobs.json";
+  writeText(jobs, R"({"jobs": [{"id": "e", "type": "env", "input": "sky.exr", "outputs": {"json": "./sky.exr"}},
+    {"id": "p", "type": "probes", "input": "tri.obj", "env": "env.json", "bounds": [0, 0, 0, 1, 1, 1],
+     "outputs": {"npy": "g.npy", "json": "env.json"}}]})");
+  auto bytes = [&] {
+    std::string all;
+    for (const char* f : {"/tri.obj", "/sky.exr", "/env.json"}) all += readText(dir + f);
+    return all;
+  };
+  const std::string before = bytes();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"transport tri.obj -o tri.obj", "tri.obj: would overwrite the input tri.obj"},
+      {"transport tri.obj -o t.npy --games202 same.obj", "same.obj: would overwrite the input tri.obj"},
+      {"transport tri.obj -o tri.obj --transfer matrix --samples 16", "tri.obj: would overwrite the input tri.obj"},
+      {"env sky.exr -o s.json --games202 sky.exr", "sky.exr: would overwrite the input sky.exr"},
+      {"prefilter sky.exr -o p.ktx2 --json " + dir + "/sky.exr", "would overwrite the input sky.exr"},
+      {"preview env sky.exr -o sky.exr", "sky.exr: would overwrite the input sky.exr"},
+      {"run jobs.json", "job 'e': outputs.json: would overwrite the job's input: " + dir + "/sky.exr"},
+      {"run jobs.json", "job 'p': outputs.json: would overwrite the job's input: " + dir + "/env.json"}};
+  for (const auto& [args, what] : cases) {
+    INFO(args);
+    const CliResult r = runShell("cd '" + dir + "' && " + cli() + args + " --quiet");
+    INFO(r.output);
+    CHECK(r.exitCode == (args.rfind("run", 0) == 0 ? 1 : 2));
+    CHECK(r.output.find(what) != std::string::npos);
+    CHECK(bytes() == before);
   }
 }
 
