@@ -205,6 +205,10 @@ class JobValidator {
       if (std::find(t.outputKinds.begin(), t.outputKinds.end(), o.key()) == t.outputKinds.end())
         problem("outputs." + o.key(), "not an output of " + t.name + " jobs (expected " + expected + ")" +
                                           didYouMean(o.key(), t.outputKinds));
+    std::vector<std::string> inputs = {job_.input};  // and the files that keys name (an environment)
+    for (const auto& k : t.keys)
+      if (k.kind == ValueKind::Path && params->contains(k.name) && (*params)[k.name].is_string())
+        inputs.push_back((*params)[k.name].get<std::string>());
     json outs = json::object();
     for (const auto& kind : t.outputKinds) {  // the type's order: the first one names the manifest
       auto o = it->find(kind);
@@ -220,20 +224,13 @@ class JobValidator {
           problem(key, why);
           continue;
         }
-      struct stat st {};
-      if (::stat(path.c_str(), &st) == 0 && kind != "dir" && S_ISDIR(st.st_mode)) {  // "dir": an ibl package
-        problem(key, "is a directory: " + path);
-        continue;
-      }
       // The finished output is renamed into place: it would replace a device or a pipe.
-      if (::stat(path.c_str(), &st) == 0 && !S_ISDIR(st.st_mode) && !S_ISREG(st.st_mode)) {
-        problem(key, "not a regular file (a device, pipe or socket): " + path);
+      struct stat st {};
+      if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && (kind != "dir" || !S_ISDIR(st.st_mode))) {
+        problem(key, S_ISDIR(st.st_mode) ? "is a directory: " + path  // "dir": an ibl package
+                                         : "not a regular file (a device, pipe or socket): " + path);
         continue;
       }
-      std::vector<std::string> inputs = {job_.input};  // and the files that keys name (an environment)
-      for (const auto& k : t.keys)
-        if (k.kind == ValueKind::Path && params->contains(k.name) && (*params)[k.name].is_string())
-          inputs.push_back((*params)[k.name].get<std::string>());
       const auto in = std::find_if(inputs.begin(), inputs.end(),
                                    [&](const std::string& i) { return !i.empty() && sameFile(i, path); });
       if (in != inputs.end()) {
