@@ -617,11 +617,23 @@ py::object prefilterProduct(const py::object& source, const py::kwargs& kw) {
   return result("PrefilterResult", f);
 }
 
+// The path an output is written to ("": None), refused before any work when it would overwrite
+// or delete one of `inputs` that is a path, as the command line refuses it.
+std::string outputPath(const py::object& out, const char* key, const std::vector<py::object>& inputs) {
+  if (out.is_none()) return "";
+  if (!isPath(out)) throw UsageError(key, "must be a path");
+  std::vector<std::string> in;
+  for (const auto& i : inputs)
+    if (isPath(i)) in.push_back(pathOf(i));
+  const std::string path = pathOf(out);
+  jobs::checkOutputsSpareInputs(in, {path});
+  return path;
+}
+
 py::object iblProduct(const py::object& source, const py::object& dir, const py::kwargs& kw) {
   const json p = paramsOf("ibl", kw, {{"dir", "-"}}, {"device", "progress"});
   const IblPackageOptions o = jobs::iblOptionsFrom(p);
-  if (!isPath(dir)) throw UsageError("out_dir", "must be a path");
-  const std::string out = pathOf(dir);
+  const std::string out = outputPath(dir, "out_dir", {source});
   py::object keep;
   EnvMap env = envArg(source, p, false, &keep);
   env.ownTexels();  // the packages' prefilter reads rgb itself
@@ -697,10 +709,8 @@ py::array imageArray(LinearImage&& img) {
   return adopt(std::move(img.rgb), {h, w, 3});
 }
 
-void writePng(const py::object& out, const LinearImage& img, double exposure, const std::string& what) {
-  if (out.is_none()) return;
-  if (!isPath(out)) throw UsageError("out", "must be a path");
-  const std::string path = pathOf(out);
+void writePng(const std::string& path, const LinearImage& img, double exposure, const std::string& what) {
+  if (path.empty()) return;
   py::gil_scoped_release nogil;
   writePreviewPng(path, img, ToneMap{exposure}, {{"Description", what}});
 }
@@ -715,6 +725,7 @@ py::array previewEnv(const py::object& source, const py::kwargs& kw) {
   const double exposure = kw.contains("exposure") ? kw["exposure"].cast<double>() : 0.0;
   if (width < 16 || width > 8192) throw UsageError("size", "must be 16..8192 (the panel width)");
   const bool coefficients = py::isinstance<py::array>(source) && py::array(source).ndim() == 2;
+  const std::string out = outputPath(kw.contains("out") ? py::object(kw["out"]) : py::none(), "out", {source});
   ShCoeffs radiance;
   EnvMap env;
   py::object keep;  // an array the map reads in place
@@ -736,8 +747,7 @@ py::array previewEnv(const py::object& source, const py::kwargs& kw) {
     py::gil_scoped_release nogil;
     img = renderEnvPreview(env.width > 0 ? &env : nullptr, radiance, width);
   }
-  writePng(kw.contains("out") ? py::object(kw["out"]) : py::none(), img, exposure,
-           "prtbake environment preview: environment | SH radiance reconstruction | irradiance/pi");
+  writePng(out, img, exposure, "prtbake environment preview: environment | SH radiance reconstruction | irradiance/pi");
   return imageArray(std::move(img));
 }
 
@@ -761,7 +771,8 @@ MeshPreviewOptions previewView(std::pair<int, int> size, const py::object& view)
 
 py::array previewMesh(const py::object& meshObj, const py::object& transport, const py::object& radiance,
                       std::pair<int, int> size, const py::object& view, double rotateLight, double exposure,
-                      const py::object& out, const std::string& spec) {
+                      const py::object& outObj, const std::string& spec) {
+  const std::string out = outputPath(outObj, "out", {meshObj});
   const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
   MeshPreviewOptions o = previewView(size, view);
   o.lightRotationDeg = rotateLight;
@@ -829,7 +840,8 @@ LightmapResult lightmapArg(const py::object& v) {
 
 // Each product of a lightmap on the mesh and as the atlas (prtbake preview lightmap).
 py::array previewLightmap(const py::object& meshObj, const py::object& lightmap, std::pair<int, int> size,
-                          const py::object& view, double exposure, const py::object& out, const std::string& spec) {
+                          const py::object& view, double exposure, const py::object& outObj, const std::string& spec) {
+  const std::string out = outputPath(outObj, "out", {meshObj, lightmap});
   const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
   MeshPreviewOptions o = previewView(size, view);
   const LightmapResult lm = lightmapArg(lightmap);
@@ -847,6 +859,7 @@ py::array previewLightmap(const py::object& meshObj, const py::object& lightmap,
 py::array previewPrefilter(const py::object& source, const py::kwargs& kw) {
   const int width = kw.contains("panel_width") ? kw["panel_width"].cast<int>() : 256;
   if (width < 16 || width > 8192) throw UsageError("panel_width", "must be 16..8192");
+  const std::string out = outputPath(kw.contains("out") ? py::object(kw["out"]) : py::none(), "out", {source});
   const PrefilterResult r = prefilterChain(source, kw, {"panel_width", "out"});
   LinearImage img;
   {
@@ -854,12 +867,12 @@ py::array previewPrefilter(const py::object& source, const py::kwargs& kw) {
     Device d = device(deviceOf(kw));
     img = renderPrefilterPreview(d.rt, r, width);
   }
-  writePng(kw.contains("out") ? py::object(kw["out"]) : py::none(), img, 0.0,
-           "prtbake prefilter preview: each level as a lat-long panel, and split-sum spheres r = 0 ... 1");
+  writePng(out, img, 0.0, "prtbake prefilter preview: each level as a lat-long panel, and split-sum spheres r = 0 ... 1");
   return imageArray(std::move(img));
 }
 
-py::array previewLut(const py::object& lut, int size, const py::object& out) {
+py::array previewLut(const py::object& lut, int size, const py::object& outObj) {
+  const std::string out = outputPath(outObj, "out", {});
   const FloatArray a = FloatArray::ensure(lut.attr("a")), b = FloatArray::ensure(lut.attr("b"));
   if (!a || !b || a.ndim() != 2 || a.shape(0) != a.shape(1) || b.ndim() != 2 || b.shape(0) != a.shape(0) ||
       b.shape(1) != a.shape(1))

@@ -79,10 +79,6 @@ nlohmann::json productParams(const std::string& type, const std::map<std::string
                              const nlohmann::json& outputs, std::vector<std::string> inputs = {});
 nlohmann::json productParams(const CommandLine& cl, const std::string& type, const nlohmann::json& outputs);
 
-// A UsageError naming the first of `outputs` that would replace one of `inputs` (jobs::sameFile):
-// `env sky.hdr -o sky.hdr` wrote its JSON over the image.
-void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs);
-
 }  // namespace prtbake::cli
 
 #define PRTBAKE_CLI_CONCAT2(a, b) a##b

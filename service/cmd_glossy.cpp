@@ -221,7 +221,7 @@ namespace {
 int runCpca(const CommandLine& cl) {
   const std::string input = cl.positional.at(0), out = cl.get("output");
   if (out.empty()) throw UsageError("cpca", "missing -o OUT.npz");
-  checkOutputsSpareInputs({input}, {out});
+  jobs::checkOutputsSpareInputs({input}, {out});
   CpcaOptions co;
   if (cl.has("clusters") != cl.has("vectors")) throw UsageError("cpca", "give both --clusters K and --vectors P");
   if (cl.has("clusters") && cl.has("target-error"))

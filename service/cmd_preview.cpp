@@ -237,7 +237,7 @@ int previewLightmap(const CommandLine& cl, const std::string& input, const std::
 int runPreview(const CommandLine& cl) {
   const std::string kind = cl.positional.at(0), input = cl.positional.at(1), output = cl.get("output");
   if (output.empty()) throw UsageError("preview", "missing -o OUT.png");
-  checkOutputsSpareInputs({input, cl.get("transport"), cl.get("env"), cl.get("background"), cl.get("lightmap")},
+  jobs::checkOutputsSpareInputs({input, cl.get("transport"), cl.get("env"), cl.get("background"), cl.get("lightmap")},
                           {output});
   if (kind == "env") return previewEnv(cl, input, output);
   if (kind == "lut") return previewLut(cl, input, output);

@@ -19,10 +19,25 @@
 namespace prtbake::jobs {
 namespace fs = std::filesystem;
 
-bool sameFile(const std::string& in, const std::string& out) {
+std::string harmToInput(const std::string& in, const std::string& out) {
   struct stat a {}, b {};
-  if (::stat(in.c_str(), &a) == 0 && ::stat(out.c_str(), &b) == 0) return a.st_dev == b.st_dev && a.st_ino == b.st_ino;
-  return fs::absolute(in).lexically_normal() == fs::absolute(out).lexically_normal();
+  if (::stat(in.c_str(), &a) != 0 || ::stat(out.c_str(), &b) != 0)
+    return fs::absolute(in).lexically_normal() == fs::absolute(out).lexically_normal() ? "would overwrite the input " + in
+                                                                                         : "";
+  if (a.st_dev == b.st_dev && a.st_ino == b.st_ino) return "would overwrite the input " + in;
+  if (!S_ISDIR(b.st_mode)) return "";
+  std::error_code ec, ec2;
+  const fs::path dir = fs::canonical(out, ec), file = fs::canonical(in, ec2);
+  if (ec || ec2) return "";
+  const auto [d, f] = std::mismatch(dir.begin(), dir.end(), file.begin(), file.end());
+  return d == dir.end() ? "would delete the input " + in + ", which lies inside it (the directory is replaced whole)" : "";
+}
+
+void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
+  for (const auto& out : outputs)
+    for (const auto& in : inputs)
+      if (!in.empty() && !out.empty())
+        if (const std::string harm = harmToInput(in, out); !harm.empty()) throw UsageError(out, harm);
 }
 
 namespace {
@@ -231,10 +246,11 @@ class JobValidator {
                                          : "not a regular file (a device, pipe or socket): " + path);
         continue;
       }
-      const auto in = std::find_if(inputs.begin(), inputs.end(),
-                                   [&](const std::string& i) { return !i.empty() && sameFile(i, path); });
-      if (in != inputs.end()) {
-        problem(key, "would overwrite the job's input: " + *in);
+      std::string harm;
+      for (const auto& in : inputs)
+        if (harm.empty() && !in.empty()) harm = harmToInput(in, path);
+      if (!harm.empty()) {
+        problem(key, harm);
         continue;
       }
       job_.outputs.push_back({kind, path});

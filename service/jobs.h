@@ -201,9 +201,16 @@ std::vector<std::string> filesRead(const Job& job, const std::vector<std::string
 // loader took of what it parsed.
 void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also = {});
 
-// Whether writing `out` would replace the input `in`: the same file by device and inode when
-// both exist (a link or another spelling of the path included), else the same absolute path.
-bool sameFile(const std::string& in, const std::string& out);
+// What writing `out` would do to the input `in`: "" nothing; "would overwrite the input IN"
+// when they are the same file (by device and inode when both exist: a link or another
+// spelling of the path included; else the same absolute path); "would delete the input IN,
+// which lies inside it (...)" when `out` is a directory that holds it (a directory output, an
+// ibl package, is replaced whole).
+std::string harmToInput(const std::string& in, const std::string& out);
+
+// A UsageError naming the first of `outputs` that would overwrite or delete one of `inputs`
+// (harmToInput; empty paths are skipped), before anything is read or written.
+void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs);
 
 // Marks jobs (across all files) that write a file another job writes, or whose
 // manifest would collide with another job's file. The first writer keeps it.

@@ -246,14 +246,8 @@ nlohmann::json productParams(const std::string& type, const std::map<std::string
   if (outputs.is_object())
     for (const auto& [kind, out] : outputs.items())
       if (out.is_string()) written.push_back(out.get<std::string>());
-  checkOutputsSpareInputs(inputs, written);
+  jobs::checkOutputsSpareInputs(inputs, written);
   return params;
-}
-
-void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
-  for (const auto& out : outputs)
-    for (const auto& in : inputs)
-      if (!in.empty() && !out.empty() && jobs::sameFile(in, out)) throw UsageError(out, "would overwrite the input " + in);
 }
 
 nlohmann::json productParams(const CommandLine& cl, const std::string& type, const nlohmann::json& outputs) {

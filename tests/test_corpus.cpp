@@ -225,9 +225,10 @@ TEST_CASE("corpus: every other input refuses a pipe or a device, naming it", "[c
   }
 }
 
-// An output path that names an input (the same file, by any path or link) is refused before
-// anything is read or written: `env sky.hdr -o sky.hdr` wrote its JSON over the image, and a
-// job's environment key was not compared with its outputs.
+// An output path that names an input (the same file, by any path or link), or a package
+// directory that holds one, is refused before anything is read or written: `env sky.hdr -o
+// sky.hdr` wrote its JSON over the image, a job's environment key was not compared with its
+// outputs, and `ibl pkg/sky.exr -o pkg` deleted the environment with the previous package.
 TEST_CASE("an output that names an input is refused, and the input is left as it was", "[corpus]") {
   const std::string dir = tempDir("corpus-overwrite");
   {
@@ -236,14 +237,21 @@ TEST_CASE("an output that names an input is refused, and the input is left as it
   }
   writeWhiteLatLong(dir + "/sky.exr");
   fs::create_symlink("tri.obj", dir + "/same.obj");
+  fs::create_symlink("pkg/sky.exr", dir + "/same.exr");
   writeText(dir + "/env.json", "{}");  // the job is refused before it is read
+  // A previous ibl package holding the environment: a package replaces its directory whole,
+  // and the environment inside was deleted once the new package was in place.
+  fs::create_directory(dir + "/pkg");
+  writeText(dir + "/pkg/ibl.json", "{}");
+  fs::copy_file(dir + "/sky.exr", dir + "/pkg/sky.exr");
   const std::string jobs = dir + "/jobs.json";
   writeText(jobs, R"({"jobs": [{"id": "e", "type": "env", "input": "sky.exr", "outputs": {"json": "./sky.exr"}},
     {"id": "p", "type": "probes", "input": "tri.obj", "env": "env.json", "bounds": [0, 0, 0, 1, 1, 1],
-     "outputs": {"npy": "g.npy", "json": "env.json"}}]})");
+     "outputs": {"npy": "g.npy", "json": "env.json"}},
+    {"id": "i", "type": "ibl", "input": "pkg/sky.exr", "size": 16, "outputs": {"dir": "pkg"}}]})");
   auto bytes = [&] {
     std::string all;
-    for (const char* f : {"/tri.obj", "/sky.exr", "/env.json"}) all += readText(dir + f);
+    for (const char* f : {"/tri.obj", "/sky.exr", "/env.json", "/pkg/sky.exr", "/pkg/ibl.json"}) all += readText(dir + f);
     return all;
   };
   const std::string before = bytes();
@@ -254,8 +262,11 @@ TEST_CASE("an output that names an input is refused, and the input is left as it
       {"env sky.exr -o s.json --games202 sky.exr", "sky.exr: would overwrite the input sky.exr"},
       {"prefilter sky.exr -o p.ktx2 --json " + dir + "/sky.exr", "would overwrite the input sky.exr"},
       {"preview env sky.exr -o sky.exr", "sky.exr: would overwrite the input sky.exr"},
-      {"run jobs.json", "job 'e': outputs.json: would overwrite the job's input: " + dir + "/sky.exr"},
-      {"run jobs.json", "job 'p': outputs.json: would overwrite the job's input: " + dir + "/env.json"}};
+      {"ibl pkg/sky.exr -o pkg --size 16", "pkg: would delete the input pkg/sky.exr, which lies inside it"},
+      {"ibl same.exr -o ./pkg/ --size 16", "./pkg/: would delete the input same.exr, which lies inside it"},
+      {"run jobs.json", "job 'e': outputs.json: would overwrite the input " + dir + "/sky.exr"},
+      {"run jobs.json", "job 'p': outputs.json: would overwrite the input " + dir + "/env.json"},
+      {"run jobs.json", "job 'i': outputs.dir: would delete the input " + dir + "/pkg/sky.exr, which lies inside it"}};
   for (const auto& [args, what] : cases) {
     INFO(args);
     const CliResult r = runShell("cd '" + dir + "' && " + cli() + args + " --quiet");

@@ -259,6 +259,30 @@ def test_errors_are_python_exceptions(tmp_path):
     assert issubclass(prtbake.InputError, prtbake.Error)
 
 
+def test_an_output_that_would_destroy_an_input_is_refused(tmp_path):
+    """As the command refuses it: a preview's out= that names its input (by any path or link), and
+    an ibl package directory that holds the environment (a package replaces its directory whole:
+    the environment was deleted once the new package was in place). Nothing is read or written."""
+    import shutil
+    sky = tmp_path / "sky.exr"
+    shutil.copyfile(SKY, sky)
+    (tmp_path / "link.exr").symlink_to("sky.exr")
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "ibl.json").write_text("{}")  # a previous package: replaced whole
+    shutil.copyfile(SKY, pkg / "sky.exr")
+    before = sky.read_bytes()
+    for call, out in [(lambda: prtbake.preview_env(sky, size=16, out=sky), "sky.exr"),
+                      (lambda: prtbake.preview_env(sky, size=16, out=tmp_path / "link.exr"), "link.exr"),
+                      (lambda: prtbake.preview_prefilter(str(tmp_path / "." / "sky.exr"), out=sky), "sky.exr"),
+                      (lambda: prtbake.ibl(pkg / "sky.exr", pkg, size=16), "pkg")]:
+        with pytest.raises(ValueError, match="would (overwrite|delete) the input") as e:
+            call()
+        assert str(e.value).split(": ")[0].endswith(out)  # the output is the subject
+    assert sky.read_bytes() == before and (pkg / "sky.exr").read_bytes() == before
+    assert sorted(p.name for p in pkg.iterdir()) == ["ibl.json", "sky.exr"]
+
+
 # --- leaks and threads ---
 
 def rss_kib():
