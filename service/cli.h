@@ -67,6 +67,11 @@ std::vector<OptionSpec> productOptions(const std::string& type, std::vector<Opti
 // The command-line names (without "--") of product `a`'s options that `b` does not have.
 std::vector<std::string> optionsOnlyOf(const std::string& a, const std::string& b);
 
+// `path` without the extension of its file name ("out/t.npy" -> "out/t"), and the sidecar JSON
+// a command writes beside an output named `path` ("out/t.json").
+std::string stem(const std::string& path);
+std::string sidecarPath(const std::string& path);
+
 // The command line's texts of keys: every option, named as a key ("bounce_tolerance").
 std::map<std::string, std::string> keyTexts(const CommandLine& cl);
 

@@ -1,5 +1,7 @@
 // prtbake transport --transfer matrix (glossy transfer matrices), prtbake cpca, and the
 // glossy mesh preview (see prtbake/glossy.h, docs/glossy.md).
+#include <sys/stat.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -20,12 +22,6 @@
 
 namespace prtbake::cli {
 namespace {
-
-std::string stem(const std::string& path) {
-  const size_t slash = path.find_last_of('/'), dot = path.find_last_of('.');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) return path.substr(0, dot);
-  return path;
-}
 
 std::string mib(double bytes) {
   char b[64];
@@ -93,7 +89,7 @@ int runGlossyTransport(const CommandLine& cl) {
     if (cl.has(name)) throw UsageError("--" + name, "only applies to --transfer vector");
   const std::map<std::string, std::string> texts = glossyTexts(cl);
   const bool cpca = texts.count("cpca_clusters") || texts.count("cpca_error");
-  nlohmann::json outputs = {{"npy", out}, {"json", stem(out) + ".json"}};
+  nlohmann::json outputs = {{"npy", out}, {"json", sidecarPath(out)}};
   if (cpca) outputs["cpca"] = stem(out) + ".cpca.npz";
   const nlohmann::json p = productParams("glossy", texts, outputs, {input});
   GlossyOptions o = jobs::glossyOptionsFrom(p);
@@ -147,7 +143,7 @@ int runGlossyTransport(const CommandLine& cl) {
     extra.emplace_back(npz, cpcaNpzBytes(c, o.orderOut, o.orderIn, channels));
     side["cpca"] = nlohmann::json::parse(cpcaSidecarJson(c, npz));
   }
-  extra.emplace_back(stem(out) + ".json", side.dump(2) + "\n");
+  extra.emplace_back(sidecarPath(out), side.dump(2) + "\n");
   std::vector<std::unique_ptr<AtomicFile>> files;
   for (const auto& [path, data] : extra) {
     files.push_back(std::make_unique<AtomicFile>(path));
@@ -221,7 +217,13 @@ namespace {
 int runCpca(const CommandLine& cl) {
   const std::string input = cl.positional.at(0), out = cl.get("output");
   if (out.empty()) throw UsageError("cpca", "missing -o OUT.npz");
-  jobs::checkOutputsSpareInputs({input}, {out});
+  const std::string sidecar = sidecarPath(out), inputSide = sidecarPath(input);
+  if (jobs::sameFile(out, sidecar)) throw UsageError(out, "is both the npz and the json output");
+  jobs::checkOutputsSpareInputs({input}, {out, sidecar});
+  struct stat st {};
+  if (::stat(inputSide.c_str(), &st) == 0 && jobs::sameFile(sidecar, inputSide))
+    throw UsageError(out, "its sidecar would replace " + inputSide + ", the sidecar of the input (name it otherwise, such as " +
+                              stem(input) + ".cpca.npz)");
   CpcaOptions co;
   if (cl.has("clusters") != cl.has("vectors")) throw UsageError("cpca", "give both --clusters K and --vectors P");
   if (cl.has("clusters") && cl.has("target-error"))
@@ -257,7 +259,7 @@ int runCpca(const CommandLine& cl) {
                          {"order_in", g.orderIn},
                          {"channels", g.channels},
                          {"cpca", nlohmann::json::parse(cpcaSidecarJson(c, out))}};
-  AtomicFile npz(out), json(stem(out) + ".json");
+  AtomicFile npz(out), json(sidecar);
   npz.write(cpcaNpzBytes(c, g.orderOut, g.orderIn, g.channels));
   json.write(side.dump(2) + "\n");
   npz.commit();

@@ -19,12 +19,6 @@ bool endsWithText(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-std::string sidecarFor(const std::string& path) {
-  const size_t slash = path.find_last_of('/'), dot = path.find_last_of('.');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) return path.substr(0, dot) + ".json";
-  return path + ".json";
-}
-
 int runPrefilter(const CommandLine& cl) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string input = cl.positional.at(0), output = cl.get("output");
@@ -39,9 +33,7 @@ int runPrefilter(const CommandLine& cl) {
   } else {
     throw UsageError("-o", "'" + output + "' must end in .ktx2 or .exr (the format follows the extension)");
   }
-  const std::string json = cl.get("json", sidecarFor(output));
-  if (json == ktx2 || json == exr || (!ktx2.empty() && ktx2 == exr))
-    throw UsageError("prefilter", "two outputs have the same path");
+  const std::string json = cl.get("json", sidecarPath(output));
   nlohmann::json outputs = {{"json", json}};
   if (!ktx2.empty()) outputs["ktx2"] = ktx2;
   if (!exr.empty()) outputs["exr"] = exr;

@@ -21,13 +21,6 @@
 namespace prtbake::cli {
 namespace {
 
-std::string sidecarPath(const std::string& npy) {
-  const size_t slash = npy.find_last_of('/');
-  const size_t dot = npy.find_last_of('.');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) return npy.substr(0, dot) + ".json";
-  return npy + ".json";
-}
-
 int runTransport(const CommandLine& cl) {
   const std::string input = cl.positional.at(0);
   const std::string out = cl.get("output");

@@ -19,25 +19,48 @@
 namespace prtbake::jobs {
 namespace fs = std::filesystem;
 
-std::string harmToInput(const std::string& in, const std::string& out) {
-  struct stat a {}, b {};
-  if (::stat(in.c_str(), &a) != 0 || ::stat(out.c_str(), &b) != 0)
-    return fs::absolute(in).lexically_normal() == fs::absolute(out).lexically_normal() ? "would overwrite the input " + in
-                                                                                         : "";
-  if (a.st_dev == b.st_dev && a.st_ino == b.st_ino) return "would overwrite the input " + in;
-  if (!S_ISDIR(b.st_mode)) return "";
+std::vector<std::string> gltfExternalFiles(const std::string& path) {
+  std::vector<std::string> files;
+  for (const auto& uri : gltfExternalUris(path)) files.push_back((fs::path(path).parent_path() / uri).lexically_normal().string());
+  return files;
+}
+
+bool sameFile(const std::string& a, const std::string& b) {
+  struct stat sa {}, sb {};
+  if (::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0) return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+  return fs::absolute(a).lexically_normal() == fs::absolute(b).lexically_normal();
+}
+
+std::string harmToInput(const std::string& in, const std::string& out, const std::string& named) {
+  const std::string input = named.empty() ? "the input " + in : named;
+  if (sameFile(in, out)) return "would overwrite " + input;
+  struct stat b {};
+  if (::stat(out.c_str(), &b) != 0 || !S_ISDIR(b.st_mode)) return "";
   std::error_code ec, ec2;
   const fs::path dir = fs::canonical(out, ec), file = fs::canonical(in, ec2);
   if (ec || ec2) return "";
   const auto [d, f] = std::mismatch(dir.begin(), dir.end(), file.begin(), file.end());
-  return d == dir.end() ? "would delete the input " + in + ", which lies inside it (the directory is replaced whole)" : "";
+  return d == dir.end() ? "would delete " + input + ", which lies inside it (the directory is replaced whole)" : "";
+}
+
+std::vector<std::string> harmsToInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
+  std::vector<std::pair<std::string, std::string>> files;  // each input, then the files it reads, with their names
+  for (const auto& in : inputs) {
+    if (in.empty()) continue;
+    files.emplace_back(in, "");
+    for (const auto& f : gltfExternalFiles(in)) files.emplace_back(f, "the input " + f + " (a file " + in + " reads)");
+  }
+  std::vector<std::string> harms(outputs.size());
+  for (size_t i = 0; i < outputs.size(); ++i)
+    for (const auto& [file, named] : files)
+      if (harms[i].empty() && !outputs[i].empty()) harms[i] = harmToInput(file, outputs[i], named);
+  return harms;
 }
 
 void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
-  for (const auto& out : outputs)
-    for (const auto& in : inputs)
-      if (!in.empty() && !out.empty())
-        if (const std::string harm = harmToInput(in, out); !harm.empty()) throw UsageError(out, harm);
+  const std::vector<std::string> harms = harmsToInputs(inputs, outputs);
+  for (size_t i = 0; i < outputs.size(); ++i)
+    if (!harms[i].empty()) throw UsageError(outputs[i], harms[i]);
 }
 
 namespace {
@@ -127,9 +150,8 @@ class JobValidator {
     std::string why = confinement_->checkInput(path);
     // An absolute URI is checked as itself (the loader would join it to the directory).
     if (why.empty())
-      for (const auto& uri : gltfExternalUris(path))
-        if (why = confinement_->checkInput((fs::path(path).parent_path() / uri).lexically_normal().string()); !why.empty())
-          break;
+      for (const auto& file : gltfExternalFiles(path))
+        if (why = confinement_->checkInput(file); !why.empty()) break;
     if (!why.empty()) problem(key, why);
     return why.empty();
   }
@@ -246,16 +268,14 @@ class JobValidator {
                                          : "not a regular file (a device, pipe or socket): " + path);
         continue;
       }
-      std::string harm;
-      for (const auto& in : inputs)
-        if (harm.empty() && !in.empty()) harm = harmToInput(in, path);
-      if (!harm.empty()) {
-        problem(key, harm);
-        continue;
-      }
       job_.outputs.push_back({kind, path});
       outs[kind] = path;
     }
+    std::vector<std::string> paths;
+    for (const auto& o : job_.outputs) paths.push_back(o.path);
+    const std::vector<std::string> harms = harmsToInputs(inputs, paths);
+    for (size_t i = 0; i < paths.size(); ++i)
+      if (!harms[i].empty()) problem("outputs." + job_.outputs[i].kind, harms[i]);
     (*params)["outputs"] = outs;
   }
 

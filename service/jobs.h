@@ -201,15 +201,25 @@ std::vector<std::string> filesRead(const Job& job, const std::vector<std::string
 // loader took of what it parsed.
 void meshInputs(const Job& job, const Mesh& mesh, ExecResult& result, const std::vector<std::string>& also = {});
 
-// What writing `out` would do to the input `in`: "" nothing; "would overwrite the input IN"
-// when they are the same file (by device and inode when both exist: a link or another
-// spelling of the path included; else the same absolute path); "would delete the input IN,
-// which lies inside it (...)" when `out` is a directory that holds it (a directory output, an
-// ibl package, is replaced whole).
-std::string harmToInput(const std::string& in, const std::string& out);
+// The files a .gltf or .glb at `path` names by URI (gltfExternalUris), resolved against its
+// directory; none for another file.
+std::vector<std::string> gltfExternalFiles(const std::string& path);
 
-// A UsageError naming the first of `outputs` that would overwrite or delete one of `inputs`
-// (harmToInput; empty paths are skipped), before anything is read or written.
+// Whether two paths name the same file: by device and inode when both exist (a link or another
+// spelling of the path included), else the same absolute path.
+bool sameFile(const std::string& a, const std::string& b);
+
+// What writing `out` would do to the input `in` (named "the input IN" unless `named` is given):
+// "" nothing; "would overwrite the input IN" when they are the same file (sameFile); "would
+// delete the input IN, which lies inside it (...)" when `out` is a directory that holds it (a
+// directory output, an ibl package, is replaced whole).
+std::string harmToInput(const std::string& in, const std::string& out, const std::string& named = "");
+// For each of `outputs`, the first harm of writing it to one of `inputs` (empty ones skipped) or
+// to a file that one of them, a glTF, reads (its buffers and images: each glTF is read once).
+std::vector<std::string> harmsToInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs);
+
+// A UsageError naming the first of `outputs` that would overwrite or delete one of `inputs` or
+// a file a glTF among them reads (harmsToInputs), before anything is read or written.
 void checkOutputsSpareInputs(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs);
 
 // Marks jobs (across all files) that write a file another job writes, or whose

@@ -219,6 +219,13 @@ void writeOutputsTogether(const std::string& dir, const std::vector<std::pair<st
   for (auto& f : staged) f->commit();
 }
 
+std::string stem(const std::string& path) {
+  const size_t slash = path.find_last_of('/'), dot = path.find_last_of('.');
+  return dot != std::string::npos && (slash == std::string::npos || dot > slash) ? path.substr(0, dot) : path;
+}
+
+std::string sidecarPath(const std::string& path) { return stem(path) + ".json"; }
+
 std::map<std::string, std::string> keyTexts(const CommandLine& cl) {
   std::map<std::string, std::string> texts;
   for (const auto& [name, text] : cl.options) {
@@ -242,10 +249,14 @@ nlohmann::json productParams(const std::string& type, const std::map<std::string
   }
   for (const auto& k : t.keys)
     if (k.kind == jobs::ValueKind::Path && texts.count(k.name)) inputs.push_back(texts.at(k.name));
-  std::vector<std::string> written;
+  std::vector<std::string> written, kinds;
   if (outputs.is_object())
     for (const auto& [kind, out] : outputs.items())
-      if (out.is_string()) written.push_back(out.get<std::string>());
+      if (out.is_string()) written.push_back(out.get<std::string>()), kinds.push_back(kind);
+  for (size_t i = 0; i < written.size(); ++i)  // one output would replace the other
+    for (size_t j = 0; j < i; ++j)
+      if (jobs::sameFile(written[j], written[i]))
+        throw UsageError(written[i], "is both the " + kinds[j] + " and the " + kinds[i] + " output");
   jobs::checkOutputsSpareInputs(inputs, written);
   return params;
 }

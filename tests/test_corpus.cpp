@@ -228,7 +228,8 @@ TEST_CASE("corpus: every other input refuses a pipe or a device, naming it", "[c
 // An output path that names an input (the same file, by any path or link), or a package
 // directory that holds one, is refused before anything is read or written: `env sky.hdr -o
 // sky.hdr` wrote its JSON over the image, a job's environment key was not compared with its
-// outputs, and `ibl pkg/sky.exr -o pkg` deleted the environment with the previous package.
+// outputs, `ibl pkg/sky.exr -o pkg` deleted the environment with the previous package, `transport
+// tri.gltf -o tri.bin` wrote over the glTF's buffer, and `cpca g.npy -o g.npz` over g.npy's sidecar.
 TEST_CASE("an output that names an input is refused, and the input is left as it was", "[corpus]") {
   const std::string dir = tempDir("corpus-overwrite");
   {
@@ -244,14 +245,21 @@ TEST_CASE("an output that names an input is refused, and the input is left as it
   fs::create_directory(dir + "/pkg");
   writeText(dir + "/pkg/ibl.json", "{}");
   fs::copy_file(dir + "/sky.exr", dir + "/pkg/sky.exr");
+  // A glTF's buffer is an input too, and a glossy bake's sidecar is kept from cpca's.
+  writeText(dir + "/tri.gltf", R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "tri.bin", "byteLength": 36}]})");
+  writeText(dir + "/tri.bin", std::string(36, '\1'));
+  REQUIRE(runShell("cd '" + dir + "' && " + cli() + "transport tri.obj -o g.npy --transfer matrix --samples 16 --quiet")
+              .exitCode == 0);
   const std::string jobs = dir + "/jobs.json";
   writeText(jobs, R"({"jobs": [{"id": "e", "type": "env", "input": "sky.exr", "outputs": {"json": "./sky.exr"}},
+    {"id": "b", "type": "transport", "input": "tri.gltf", "outputs": {"npy": "tri.bin"}},
     {"id": "p", "type": "probes", "input": "tri.obj", "env": "env.json", "bounds": [0, 0, 0, 1, 1, 1],
      "outputs": {"npy": "g.npy", "json": "env.json"}},
     {"id": "i", "type": "ibl", "input": "pkg/sky.exr", "size": 16, "outputs": {"dir": "pkg"}}]})");
   auto bytes = [&] {
     std::string all;
-    for (const char* f : {"/tri.obj", "/sky.exr", "/env.json", "/pkg/sky.exr", "/pkg/ibl.json"}) all += readText(dir + f);
+    for (const char* f : {"/tri.obj", "/sky.exr", "/env.json", "/pkg/sky.exr", "/pkg/ibl.json", "/tri.bin", "/g.json"})
+      all += readText(dir + f);
     return all;
   };
   const std::string before = bytes();
@@ -262,9 +270,12 @@ TEST_CASE("an output that names an input is refused, and the input is left as it
       {"env sky.exr -o s.json --games202 sky.exr", "sky.exr: would overwrite the input sky.exr"},
       {"prefilter sky.exr -o p.ktx2 --json " + dir + "/sky.exr", "would overwrite the input sky.exr"},
       {"preview env sky.exr -o sky.exr", "sky.exr: would overwrite the input sky.exr"},
+      {"transport tri.gltf -o tri.bin", "tri.bin: would overwrite the input tri.bin (a file tri.gltf reads)"},
+      {"cpca g.npy -o g.npz --clusters 1 --vectors 1", "g.npz: its sidecar would replace g.json, the sidecar of the input"},
       {"ibl pkg/sky.exr -o pkg --size 16", "pkg: would delete the input pkg/sky.exr, which lies inside it"},
       {"ibl same.exr -o ./pkg/ --size 16", "./pkg/: would delete the input same.exr, which lies inside it"},
       {"run jobs.json", "job 'e': outputs.json: would overwrite the input " + dir + "/sky.exr"},
+      {"run jobs.json", "job 'b': outputs.npy: would overwrite the input " + dir + "/tri.bin (a file " + dir + "/tri.gltf reads)"},
       {"run jobs.json", "job 'p': outputs.json: would overwrite the input " + dir + "/env.json"},
       {"run jobs.json", "job 'i': outputs.dir: would delete the input " + dir + "/pkg/sky.exr, which lies inside it"}};
   for (const auto& [args, what] : cases) {
@@ -274,6 +285,34 @@ TEST_CASE("an output that names an input is refused, and the input is left as it
     CHECK(r.exitCode == (args.rfind("run", 0) == 0 ? 1 : 2));
     CHECK(r.output.find(what) != std::string::npos);
     CHECK(bytes() == before);
+  }
+}
+
+// Two outputs of one command that name the same file: one replaced the other without a word
+// (`transport -o t.npy --games202 t.json` kept the sidecar, not the GAMES202 text).
+TEST_CASE("two outputs of one command that are the same file are refused, and neither is written", "[corpus]") {
+  const std::string dir = tempDir("corpus-two-outputs");
+  {
+    std::ofstream tri(dir + "/tri.obj");
+    tri << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  }
+  writeWhiteLatLong(dir + "/sky.exr");
+  REQUIRE(runShell("cd '" + dir + "' && " + cli() + "transport tri.obj -o g.npy --transfer matrix --samples 16 --quiet")
+              .exitCode == 0);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"transport tri.obj -o t.npy --games202 t.json", "t.json: is both the games202 and the json output"},
+      {"transport tri.obj -o t.npy --games202 ./t.npy", "t.npy: is both the games202 and the npy output"},
+      {"transport tri.obj -o t.json --transfer matrix --samples 16", "t.json: is both the json and the npy output"},
+      {"env sky.exr -o t.json --games202 ./t.json", "t.json: is both the games202 and the json output"},
+      {"prefilter sky.exr -o t.ktx2 --json t.ktx2", "t.ktx2: is both the json and the ktx2 output"},
+      {"cpca g.npy -o t.json --clusters 1 --vectors 1", "t.json: is both the npz and the json output"}};
+  for (const auto& [args, what] : cases) {
+    INFO(args);
+    const CliResult r = runShell("cd '" + dir + "' && " + cli() + args + " --quiet");
+    INFO(r.output);
+    CHECK(r.exitCode == 2);
+    CHECK(r.output.find(what) != std::string::npos);
+    for (const char* f : {"/t.npy", "/t.json", "/t.ktx2"}) CHECK_FALSE(fileExists(dir + f));
   }
 }
 
