@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -1019,6 +1020,65 @@ TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have 
   broken["accessors"][prt]["count"] = broken["accessors"][prt]["count"].get<int>() + 7;
   std::ofstream(dir + "/broken.gltf") << broken.dump();
   CHECK(validate(dir + "/broken.gltf")["errors"].get<int>() > 0);
+}
+
+TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image files", "[engines][gltf][data]") {
+  // BoxTextured.glb unpacked into a .gltf with an external buffer and an external PNG (its URI
+  // escaped, "tex%20ture.png"); the copies go to another directory. Seen failing before: the copy
+  // kept the URI, which named nothing beside it (the validator's IO_ERROR), so a viewer lost the
+  // texture. Errors and warnings must be 0 (the source's own image view is left unused: an info).
+  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
+  if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
+    PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
+  const std::string glb = test::dataFile("meshes/gltf/BoxTextured.glb");
+  PRTBAKE_SKIP_IF_NO_DATA(glb);
+  const std::string dir = test::tempDir("gltf_copy_images");
+  std::filesystem::create_directories(dir + "/src");
+  std::filesystem::create_directories(dir + "/out");
+  const std::string bytes = readText(glb);
+  uint32_t jsonLength = 0, binLength = 0;
+  std::memcpy(&jsonLength, bytes.data() + 12, 4);
+  std::memcpy(&binLength, bytes.data() + 20 + jsonLength, 4);
+  json doc = json::parse(bytes.substr(20, jsonLength));
+  const std::string bin = bytes.substr(20 + jsonLength + 8, binLength);
+  const json& view = doc["bufferViews"][doc["images"][0]["bufferView"].get<int>()];
+  const std::string png = bin.substr(view.value("byteOffset", size_t(0)), view["byteLength"].get<size_t>());
+  REQUIRE(png.compare(0, 4, "\x89PNG") == 0);
+  doc["buffers"][0]["uri"] = "box.bin";
+  doc["images"][0] = {{"uri", "tex%20ture.png"}};
+  std::ofstream(dir + "/src/box.gltf") << doc.dump();
+  std::ofstream(dir + "/src/box.bin", std::ios::binary) << bin.substr(0, doc["buffers"][0]["byteLength"].get<size_t>());
+  std::ofstream(dir + "/src/tex ture.png", std::ios::binary) << png;
+  auto validate = [&](const std::string& file) {
+    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");
+    INFO(r.output.substr(0, 3000));
+    REQUIRE(r.exitCode == 0);
+    return json::parse(r.output);
+  };
+  for (const std::string ext : {"glb", "gltf"}) {
+    const std::string out = dir + "/out/copy." + ext;
+    REQUIRE(test::runCli("transport '" + dir + "/src/box.gltf' -o '" + dir + "/out/t.npy' --samples 16 --gltf '" + out +
+                         "' --quiet")
+                .exitCode == 0);
+    const json rep = validate(out);
+    INFO(out << ": " << rep.dump());
+    CHECK(rep["errors"] == 0);
+    CHECK(rep["warnings"] == 0);
+  }
+  // The PNG's bytes as they were, in the binary copy's BIN chunk.
+  const std::string out = readText(dir + "/out/copy.glb");
+  std::memcpy(&jsonLength, out.data() + 12, 4);
+  const json glbDoc = json::parse(out.substr(20, jsonLength));
+  const json& image = glbDoc["images"][0];
+  CHECK_FALSE(image.contains("uri"));
+  CHECK(image["mimeType"] == "image/png");
+  const json& v = glbDoc["bufferViews"][image["bufferView"].get<int>()];
+  CHECK(out.substr(20 + jsonLength + 8 + v.value("byteOffset", size_t(0)), v["byteLength"].get<size_t>()) == png);
+  // The control: the text copy with the source's URI back fails to load its image.
+  json kept = json::parse(readText(dir + "/out/copy.gltf"));
+  kept["images"][0] = {{"uri", "tex%20ture.png"}};
+  std::ofstream(dir + "/out/kept.gltf") << kept.dump();
+  CHECK(validate(dir + "/out/kept.gltf")["errors"].get<int>() > 0);
 }
 
 TEST_CASE("glTF-Validator: the Babylon target's EXT_lights_image_based scene", "[engines][gltf]") {

@@ -72,6 +72,25 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<
   if (files) *files = std::move(external);
 }
 
+std::string decodeGltfUri(const std::string& uri) {
+  // As tinygltf decodes it (its urldecode): '+' a space, '%' and the next two characters a byte,
+  // a character that is no hex digit counting as 0.
+  auto nibble = [](char c) {
+    return std::isdigit(uint8_t(c)) ? c - '0' : std::isxdigit(uint8_t(c)) ? std::tolower(uint8_t(c)) - 'a' + 10 : 0;
+  };
+  std::string decoded;
+  for (size_t i = 0; i < uri.size(); ++i)
+    if (uri[i] == '+') {
+      decoded += ' ';
+    } else if (uri[i] == '%' && i + 2 < uri.size()) {
+      decoded += char(nibble(uri[i + 1]) << 4 | nibble(uri[i + 2]));
+      i += 2;
+    } else {
+      decoded += uri[i];
+    }
+  return decoded;
+}
+
 std::vector<GltfUri> gltfUris(const std::string& bytes) {
   std::string_view text = bytes;
   if (text.size() >= 20 && text.compare(0, 4, "glTF") == 0) {  // GLB: the JSON chunk (the first)
@@ -88,22 +107,7 @@ std::vector<GltfUri> gltfUris(const std::string& bytes) {
           if (item.is_object() && item.contains("uri") && item["uri"].is_string()) {
             const std::string uri = item["uri"].get<std::string>();
             if (uri.empty() || uri.rfind("data:", 0) == 0) continue;  // no file (a GLB's own buffer)
-            // As tinygltf decodes it (its urldecode): '+' a space, '%' and the next two characters a
-            // byte, a character that is no hex digit counting as 0.
-            auto nibble = [](char c) {
-              return std::isdigit(uint8_t(c)) ? c - '0' : std::isxdigit(uint8_t(c)) ? std::tolower(uint8_t(c)) - 'a' + 10 : 0;
-            };
-            std::string decoded;
-            for (size_t i = 0; i < uri.size(); ++i)
-              if (uri[i] == '+') {
-                decoded += ' ';
-              } else if (uri[i] == '%' && i + 2 < uri.size()) {
-                decoded += char(nibble(uri[i + 1]) << 4 | nibble(uri[i + 2]));
-                i += 2;
-              } else {
-                decoded += uri[i];
-              }
-            uris.push_back({key, decoded});
+            uris.push_back({key, decodeGltfUri(uri)});
           }
   } catch (const nlohmann::json::exception&) {
     // not JSON: the loader reports the syntax error
@@ -187,12 +191,42 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
   return out;
 }
 
-std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path) {
+std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path, const std::string& sourcePath) {
   const size_t dot = path.find_last_of('.');
   std::string ext = dot == std::string::npos ? "" : path.substr(dot + 1);
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   const bool binary = ext == "glb";
   for (auto& b : model.buffers) b.uri.clear();
+  // An image file the source names by URI goes into buffer 0 with its bytes as they are: the copy
+  // is written elsewhere than the source, where the URI would name nothing.
+  const size_t slash = sourcePath.find_last_of('/');
+  const std::string sourceDir = slash == std::string::npos ? "." : sourcePath.substr(0, slash);
+  for (auto& image : model.images) {
+    if (image.uri.empty() || image.uri.rfind("data:", 0) == 0) continue;
+    const std::string file = sourceDir + "/" + decodeGltfUri(image.uri);
+    const std::string bytes = readFile(file);
+    auto starts = [&](size_t at, std::string_view magic) {
+      return bytes.size() >= at + magic.size() && bytes.compare(at, magic.size(), magic) == 0;
+    };
+    const std::string mime = starts(0, "\x89PNG\r\n\x1a\n")          ? "image/png"
+                             : starts(0, "\xff\xd8\xff")                ? "image/jpeg"
+                             : starts(0, "\xabKTX 20\xbb")               ? "image/ktx2"
+                             : starts(0, "RIFF") && starts(8, "WEBP") ? "image/webp"
+                                                                      : image.mimeType;  // as the source declares it
+    if (mime.empty())
+      throw InputError(file, "not a PNG, JPEG, KTX2 or WebP image, and the glTF gives no mimeType: cannot embed it in "
+                             "the glTF copy " + path);
+    if (model.buffers.empty()) model.buffers.emplace_back();
+    auto& data = model.buffers[0].data;
+    data.resize((data.size() + 3) / 4 * 4);
+    tinygltf::BufferView view;
+    view.buffer = 0, view.byteOffset = data.size(), view.byteLength = bytes.size();
+    data.insert(data.end(), bytes.begin(), bytes.end());
+    model.bufferViews.push_back(view);
+    image.bufferView = int(model.bufferViews.size() - 1);
+    image.mimeType = mime;
+    image.uri.clear();
+  }
   tinygltf::TinyGLTF writer;
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model, os, !binary, binary))

@@ -25,10 +25,16 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<
 std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
                                  const std::string& what, size_t expectedCount = SIZE_MAX);
 
-// The bytes of a glTF copy at `path`: binary (.glb, buffer 0 as its BIN chunk) when the
-// extension is .glb (any case), else .gltf text with every buffer embedded as a data URI (the
-// model's buffer URIs are cleared). Throws OutputError(path, ...) when tinygltf cannot write it.
-std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path);
+// The bytes of a glTF copy at `path` of the model loaded from `sourcePath`: binary (.glb, buffer
+// 0 as its BIN chunk) when the extension is .glb (any case), else .gltf text with every buffer
+// embedded as a data URI (the model's buffer URIs are cleared). The image files the source names
+// by URI are embedded in buffer 0 as they are, with their media type (PNG, JPEG, KTX2 or WebP by
+// their bytes, another kind by the image's mimeType; InputError without one). Throws
+// OutputError(path, ...) when tinygltf cannot write it.
+std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path, const std::string& sourcePath);
+
+// A URI as tinygltf decodes it before opening the file: '+' a space, %XX a byte.
+std::string decodeGltfUri(const std::string& uri);
 
 // The URIs that a glTF text or GLB container (`bytes`, by the GLB magic) names: its buffers'
 // and images' (data: URIs left out), decoded as tinygltf decodes them, each with the key that

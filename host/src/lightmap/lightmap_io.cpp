@@ -172,7 +172,7 @@ std::string lightmapGltfBytes(const std::string& path, const Mesh& mesh, const L
     occ.texCoord = lm.uvSet;
     occ.strength = 1.0;
   }
-  return detail::gltfCopyBytes(model, path);
+  return detail::gltfCopyBytes(model, path, mesh.sourcePath);
 }
 
 std::string lightmapSidecarBytes(const std::string& inputPath, const LightmapOptions& o, const LightmapResult& lm) {

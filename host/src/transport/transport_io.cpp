@@ -95,7 +95,7 @@ std::string transportGltfBytes(const std::string& path, const Mesh& mesh, const 
         prim.attributes[name] = int(model.accessors.size() - 1);
       }
   }
-  return detail::gltfCopyBytes(model, path);
+  return detail::gltfCopyBytes(model, path, mesh.sourcePath);
 }
 
 void writeTransportGltf(const std::string& path, const Mesh& mesh, const TransportResult& r) {
