@@ -1023,10 +1023,11 @@ TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have 
 }
 
 TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image files", "[engines][gltf][data]") {
-  // BoxTextured.glb unpacked into a .gltf with an external buffer and an external PNG (its URI
+  // BoxTextured.glb unpacked into a .gltf with two external buffers and an external PNG (its URI
   // escaped, "tex%20ture.png"); the copies go to another directory. Seen failing before: the copy
   // kept the URI, which named nothing beside it (the validator's IO_ERROR), so a viewer lost the
-  // texture. Errors and warnings must be 0 (the source's own image view is left unused: an info).
+  // texture; and the .glb copy kept the second buffer as a data URI (URI_GLB, a warning). Errors
+  // and warnings must be 0 (the source's own image view is left unused: an info).
   const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
   if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
     PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
@@ -1044,10 +1045,14 @@ TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image f
   const json& view = doc["bufferViews"][doc["images"][0]["bufferView"].get<int>()];
   const std::string png = bin.substr(view.value("byteOffset", size_t(0)), view["byteLength"].get<size_t>());
   REQUIRE(png.compare(0, 4, "\x89PNG") == 0);
+  // Two external buffers (the same bytes; every other view reads the second): a GLB holds one.
   doc["buffers"][0]["uri"] = "box.bin";
+  doc["buffers"][1] = {{"uri", "box2.bin"}, {"byteLength", doc["buffers"][0]["byteLength"]}};
+  for (size_t i = 1; i < doc["bufferViews"].size(); i += 2) doc["bufferViews"][i]["buffer"] = 1;
   doc["images"][0] = {{"uri", "tex%20ture.png"}};
   std::ofstream(dir + "/src/box.gltf") << doc.dump();
-  std::ofstream(dir + "/src/box.bin", std::ios::binary) << bin.substr(0, doc["buffers"][0]["byteLength"].get<size_t>());
+  for (const char* name : {"/src/box.bin", "/src/box2.bin"})
+    std::ofstream(dir + name, std::ios::binary) << bin.substr(0, doc["buffers"][0]["byteLength"].get<size_t>());
   std::ofstream(dir + "/src/tex ture.png", std::ios::binary) << png;
   auto validate = [&](const std::string& file) {
     const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");

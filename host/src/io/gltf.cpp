@@ -196,6 +196,19 @@ std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path, const
   std::string ext = dot == std::string::npos ? "" : path.substr(dot + 1);
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   const bool binary = ext == "glb";
+  // One buffer: a GLB holds one (its BIN chunk), and a URI there draws glTF-Validator's warning.
+  if (model.buffers.size() > 1) {
+    std::vector<size_t> start(model.buffers.size(), 0);
+    auto& first = model.buffers[0].data;
+    for (size_t b = 1; b < model.buffers.size(); ++b) {
+      first.resize((first.size() + 3) / 4 * 4);
+      start[b] = first.size();
+      first.insert(first.end(), model.buffers[b].data.begin(), model.buffers[b].data.end());
+    }
+    for (auto& view : model.bufferViews)
+      if (view.buffer > 0 && size_t(view.buffer) < start.size()) view.byteOffset += start[size_t(view.buffer)], view.buffer = 0;
+    model.buffers.resize(1);
+  }
   for (auto& b : model.buffers) b.uri.clear();
   // An image file the source names by URI goes into buffer 0 with its bytes as they are: the copy
   // is written elsewhere than the source, where the URI would name nothing.

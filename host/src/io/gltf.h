@@ -26,8 +26,9 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
                                  const std::string& what, size_t expectedCount = SIZE_MAX);
 
 // The bytes of a glTF copy at `path` of the model loaded from `sourcePath`: binary (.glb, buffer
-// 0 as its BIN chunk) when the extension is .glb (any case), else .gltf text with every buffer
-// embedded as a data URI (the model's buffer URIs are cleared). The image files the source names
+// 0 as its BIN chunk) when the extension is .glb (any case), else .gltf text with buffer 0
+// embedded as a data URI; the model's buffers are first joined into buffer 0 (its views moved
+// with them) and their URIs cleared. The image files the source names
 // by URI are embedded in buffer 0 as they are, with their media type (PNG, JPEG, KTX2 or WebP by
 // their bytes, another kind by the image's mimeType; InputError without one). Throws
 // OutputError(path, ...) when tinygltf cannot write it.
