@@ -3,6 +3,8 @@
 // that bilinear and mip lookups read; the UV checks and the command's bad inputs.
 #include <catch2/catch.hpp>
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -993,6 +995,49 @@ try {
 )";
 
 }  // namespace
+
+// A 16384² lightmap of AO took 12 GB and 28 s before "out of host memory" under a 16 GB limit
+// (and the OOM killer without one); its transport at order 8 would need ~350 GiB. The estimate
+// is checked both ways on real bakes: above each one's peak (so a refusal never stops a bake
+// that fits), and within 4x of it (a wrong factor would refuse sizes that fit).
+TEST_CASE("Lightmap: a size beyond the memory the process can have is refused at once, and the estimate bounds real peaks",
+          "[lightmap]") {
+  const std::string dir = test::tempDir("lightmap-memory");
+  std::ofstream(dir + "/floor.obj") << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                                       "vn 0 1 0\nf 1/1/1 4/4/1 3/3/1\nf 1/1/1 3/3/1 2/2/1\n";
+  const auto refused = test::runCli("lightmap '" + dir + "/floor.obj' -o '" + dir + "/big' --size 16384 --products "
+                                    "ao,transport --order 8 --quiet");
+  INFO(refused.output);
+  CHECK(refused.exitCode == 2);
+  CHECK_THAT(refused.output, Catch::StartsWith("prtbake: error: --size: a 16384x16384 lightmap with ao,transport at order "
+                                               "8 needs about ") && Catch::Contains("GiB at its peak, more than the"));
+  CHECK_FALSE(test::fileExists(dir + "/big"));
+  // Real bakes, the estimates ascending (the children's largest peak so far is what getrusage gives).
+  struct Bake {
+    unsigned products;
+    int size, order;
+  };
+  double before = 0;
+  for (const Bake& b : {Bake{kLightmapAo, 512, 3}, Bake{kLightmapAo | kLightmapBent, 1024, 3},
+                        Bake{kLightmapTransport, 1024, 6}}) {
+    LightmapOptions o;
+    o.products = b.products, o.order = b.order;
+    const double estimate = lightmapPeakBytes(o, b.size, b.size);
+    REQUIRE(estimate > before);
+    before = estimate;
+    const auto r = test::runCli("lightmap '" + dir + "/floor.obj' -o '" + dir + "/m' --size " + std::to_string(b.size) +
+                                " --products " + lightmapProductsName(b.products) + " --order " +
+                                std::to_string(b.order) + " --samples 4 --quiet");
+    REQUIRE(r.exitCode == 0);
+    struct rusage u {};
+    getrusage(RUSAGE_CHILDREN, &u);
+    const double peak = double(u.ru_maxrss) * 1024;
+    INFO(lightmapProductsName(b.products) << " at " << b.size << "²: peak " << peak / 1048576 << " MiB, estimate "
+                                          << estimate / 1048576 << " MiB");
+    CHECK(peak <= estimate);
+    CHECK(peak >= estimate / 4);
+  }
+}
 
 TEST_CASE("Lightmap: the preview shows each product on the mesh where its UV reads it, beside the atlas", "[lightmap][preview]") {
   // The floor z = 0 over [−1, 1]², facing the front view's camera (+z; screen up +y, right +x),

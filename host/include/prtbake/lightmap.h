@@ -133,6 +133,11 @@ struct LightmapResult {
 // a missing UV set or non-finite UVs.
 int lightmapSize(const Mesh& mesh, const LightmapOptions& options);
 
+// The estimated peak memory in bytes of a bake of `options`' products at width x height (errs
+// high); lightmapSamples refuses a size whose estimate exceeds the memory the process can have
+// (checkProcessMemory, prtbake/limits.h) with a UsageError naming --size or --texels-per-unit.
+double lightmapPeakBytes(const LightmapOptions& options, int width, int height);
+
 // The bake's first stage, without a device: the UV checks, the charts, the conservative
 // rasterisation and each touched texel's sample. Throws as computeLightmap does for the mesh
 // and UVs (and UsageError for the size).

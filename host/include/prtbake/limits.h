@@ -1,4 +1,4 @@
-// prtbake/limits.h: the memory an input may take once decoded.
+// prtbake/limits.h: the memory an input may take once decoded, and a process altogether.
 //
 // Every loader checks the size a file claims (an image's width and height, a glTF
 // accessor's count, a .npy shape) against this limit before it allocates, so a
@@ -25,5 +25,13 @@ void setInputMemoryLimit(size_t bytes);
 // of M MiB (set PRTBAKE_INPUT_LIMIT_MB to change it)") when `bytes` exceed the
 // limit. `bytes` is a double so that a product of header fields cannot wrap.
 void checkInputMemory(const std::string& subject, const std::string& what, double bytes);
+
+// The memory this process can have: the machine's physical memory, or less under its cgroup's
+// limit (a container, a Slurm job's --mem); read once.
+double processMemoryBytes();
+// Throws UsageError(subject, "<what> needs about N GiB at its peak, more than the M GiB this
+// process can have ...") when `bytes`, a work's estimated peak, exceed processMemoryBytes():
+// a request that could only end in the OOM killer or swapping fails before it starts.
+void checkProcessMemory(const std::string& subject, const std::string& what, double bytes);
 
 }  // namespace prtbake

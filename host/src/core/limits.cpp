@@ -1,10 +1,16 @@
 // The input memory limit (prtbake/limits.h).
 #include "prtbake/limits.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "prtbake/error.h"
 
@@ -47,6 +53,36 @@ void checkInputMemory(const std::string& subject, const std::string& what, doubl
   if (!(bytes <= limit))
     throw InputError(subject, what + " needs " + mib(bytes) + " MiB, more than the input memory limit of " + mib(limit) +
                                   " MiB (set PRTBAKE_INPUT_LIMIT_MB to change it)");
+}
+
+double processMemoryBytes() {
+  static const double bytes = [] {
+    double b = double(::sysconf(_SC_PHYS_PAGES)) * double(::sysconf(_SC_PAGESIZE));
+    // A cgroup's limit: v2 (memory.max of the process's group, or of the root a container
+    // sees) and v1 (memory.limit_in_bytes). "max" or an unreadable file: none.
+    std::vector<std::string> files = {"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"};
+    std::ifstream groups("/proc/self/cgroup");
+    for (std::string line; std::getline(groups, line);)
+      if (line.rfind("0::", 0) == 0) files.push_back("/sys/fs/cgroup" + line.substr(3) + "/memory.max");
+    for (const auto& f : files) {
+      std::ifstream in(f);
+      double v = 0;
+      if (in >> v && v > 0) b = std::min(b, v);
+    }
+    return b;
+  }();
+  return bytes;
+}
+
+void checkProcessMemory(const std::string& subject, const std::string& what, double bytes) {
+  const double have = processMemoryBytes();
+  if (!(bytes <= have)) {
+    std::ostringstream s;
+    s.precision(1);
+    s << std::fixed << what << " needs about " << bytes / 1073741824.0 << " GiB at its peak, more than the "
+      << have / 1073741824.0 << " GiB this process can have (the machine's memory or its cgroup's limit)";
+    throw UsageError(subject, s.str());
+  }
 }
 
 }  // namespace prtbake

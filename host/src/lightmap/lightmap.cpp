@@ -1,6 +1,7 @@
 // Lightmaps: conservative rasterisation of the UV charts, the samples' unocclusion, the bake
 // through the transport at surface points, and dilation (see prtbake/lightmap.h).
 #include "prtbake/lightmap.h"
+#include "prtbake/limits.h"
 
 #include <algorithm>
 #include <chrono>
@@ -519,7 +520,7 @@ unsigned parseLightmapProducts(const std::string& list) {
     else if (name == "irradiance") bits |= kLightmapIrradiance;
     else if (name == "transport") bits |= kLightmapTransport;
     else if (name == "sh") bits |= kLightmapSh;
-    else throw UsageError("--products", "unknown product '" + name + "' (expected ao, bent, irradiance, transport)");
+    else throw UsageError("--products", "unknown product '" + name + "' (expected ao, bent, irradiance, transport, sh)");
     start = end + 1;
   }
   return bits;
@@ -560,6 +561,22 @@ int lightmapSize(const Mesh& mesh, const LightmapOptions& o) {
   return std::max(4, int(std::ceil(side / 4)) * 4);
 }
 
+// The bake's peak memory, fitted to peaks measured at 512² to 4096² (docs/lightmap.md, "Memory"):
+// about 128 MiB for the process, 320 bytes a texel for the samples, their rays' set-up and the
+// device's copies, and 12 bytes for each float a texel holds (its products and the transport
+// they come from, four sets of it with bounces: the device's, the host's and the map's copies).
+// It errs high, by up to 2x for sh.
+double lightmapPeakBytes(const LightmapOptions& o, int W, int H) {
+  const double nc = double(o.order) * o.order;
+  double floats = 0;
+  if (o.products & (kLightmapAo | kLightmapBent)) floats += 5 + (o.products & kLightmapBent ? 6 : 0);
+  if (o.products & (kLightmapIrradiance | kLightmapTransport | kLightmapSh)) floats += nc * (o.bounces > 0 ? 4 : 1);
+  if (o.products & kLightmapIrradiance) floats += 3;
+  if (o.products & kLightmapTransport) floats += nc;
+  if (o.products & kLightmapSh) floats += 3.0 * o.shOrder * o.shOrder;
+  return 128.0 * 1048576 + double(W) * H * (320 + 12 * floats);
+}
+
 LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& o) {
   const auto tStart = Clock::now();
   validateMesh(mesh, subjectOf(mesh));
@@ -568,6 +585,11 @@ LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& o) {
   lm.products = o.products;
   lm.uvSet = resolveUvSet(mesh, o.uvSet);
   lm.width = lm.height = lightmapSize(mesh, o);
+  checkProcessMemory(o.size ? "--size" : "--texels-per-unit",
+                     "a " + std::to_string(lm.width) + "x" + std::to_string(lm.height) + " lightmap with " +
+                         lightmapProductsName(o.products) +
+                         (o.products & ~(kLightmapAo | kLightmapBent) ? " at order " + std::to_string(o.order) : ""),
+                     lightmapPeakBytes(o, lm.width, lm.height));
   lm.samples = o.samples;
   const int W = lm.width, H = lm.height;
   const std::vector<float>& uv = mesh.uvs[size_t(lm.uvSet)];
