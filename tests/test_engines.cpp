@@ -41,6 +41,28 @@ std::string readText(const std::string& path) {
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
 }
 
+// Whether node and the Khronos glTF-Validator (tests/js/node_modules) are here.
+bool gltfValidatorReady() {
+  return test::runShell("command -v node").exitCode == 0 &&
+         test::fileExists(std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/node_modules/gltf-validator/package.json");
+}
+
+// The glTF-Validator's report on `file` (tests/js/gltf_validate.mjs): issue counts and messages.
+json gltfValidate(const std::string& file) {
+  const test::CliResult r =
+      test::runShell("node '" + std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/gltf_validate.mjs' '" + file + "'");
+  INFO(r.output.substr(0, 3000));
+  REQUIRE(r.exitCode == 0);
+  return json::parse(r.output);
+}
+
+// The report on transport's glTF copy `out` of `mesh` (the .npy beside it), with `options`.
+json gltfCopyReport(const std::string& mesh, const std::string& out, const std::string& options) {
+  const std::string npy = out.substr(0, out.find_last_of('/')) + "/t.npy";
+  REQUIRE(test::runCli("transport '" + mesh + "' -o '" + npy + "' " + options + " --gltf '" + out + "' --quiet").exitCode == 0);
+  return gltfValidate(out);
+}
+
 // 1200 directions of a Fibonacci sphere.
 std::vector<std::array<double, 3>> sphereDirections() {
   std::vector<std::array<double, 3>> d;
@@ -989,24 +1011,14 @@ TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have 
   // Every issue counts: errors, warnings, infos and hints must all be 0. Seen failing: the
   // text copy with one _PRT_T accessor's count 7 too large (ACCESSOR_TOO_LONG,
   // MESH_PRIMITIVE_UNEQUAL_ACCESSOR_COUNT).
-  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
-  if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
+  if (!gltfValidatorReady())
     PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
   const std::string dir = test::tempDir("gltf_validator");
   const std::string scene = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/scene.gltf";
-  auto validate = [&](const std::string& file) {
-    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");
-    INFO(r.output.substr(0, 3000));
-    REQUIRE(r.exitCode == 0);
-    return json::parse(r.output);
-  };
   for (const std::string ext : {"glb", "gltf"}) {
     for (const std::string mode : {"unshadowed", "shadowed"}) {
       const std::string out = dir + "/" + mode + "." + ext;
-      REQUIRE(test::runCli("transport '" + scene + "' -o '" + dir + "/t.npy' --mode " + mode + " --samples 64 --gltf '" + out +
-                           "' --quiet")
-                  .exitCode == 0);
-      const json rep = validate(out);
+      const json rep = gltfCopyReport(scene, out, "--mode " + mode + " --samples 64");
       INFO(out << ": " << rep.dump());
       CHECK(rep["errors"] == 0);
       CHECK(rep["warnings"] == 0);
@@ -1019,7 +1031,7 @@ TEST_CASE("glTF-Validator: transport's glTF copies with _PRT_T* attributes have 
   const int prt = broken["meshes"][0]["primitives"][0]["attributes"]["_PRT_T0"].get<int>();
   broken["accessors"][prt]["count"] = broken["accessors"][prt]["count"].get<int>() + 7;
   std::ofstream(dir + "/broken.gltf") << broken.dump();
-  CHECK(validate(dir + "/broken.gltf")["errors"].get<int>() > 0);
+  CHECK(gltfValidate(dir + "/broken.gltf")["errors"].get<int>() > 0);
 }
 
 TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image files", "[engines][gltf][data]") {
@@ -1028,8 +1040,7 @@ TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image f
   // kept the URI, which named nothing beside it (the validator's IO_ERROR), so a viewer lost the
   // texture; and the .glb copy kept the second buffer as a data URI (URI_GLB, a warning). Errors
   // and warnings must be 0 (the source's own image view is left unused: an info).
-  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
-  if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
+  if (!gltfValidatorReady())
     PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
   const std::string glb = test::dataFile("meshes/gltf/BoxTextured.glb");
   PRTBAKE_SKIP_IF_NO_DATA(glb);
@@ -1054,18 +1065,9 @@ TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image f
   for (const char* name : {"/src/box.bin", "/src/box2.bin"})
     std::ofstream(dir + name, std::ios::binary) << bin.substr(0, doc["buffers"][0]["byteLength"].get<size_t>());
   std::ofstream(dir + "/src/tex ture.png", std::ios::binary) << png;
-  auto validate = [&](const std::string& file) {
-    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");
-    INFO(r.output.substr(0, 3000));
-    REQUIRE(r.exitCode == 0);
-    return json::parse(r.output);
-  };
   for (const std::string ext : {"glb", "gltf"}) {
     const std::string out = dir + "/out/copy." + ext;
-    REQUIRE(test::runCli("transport '" + dir + "/src/box.gltf' -o '" + dir + "/out/t.npy' --samples 16 --gltf '" + out +
-                         "' --quiet")
-                .exitCode == 0);
-    const json rep = validate(out);
+    const json rep = gltfCopyReport(dir + "/src/box.gltf", out, "--samples 16");
     INFO(out << ": " << rep.dump());
     CHECK(rep["errors"] == 0);
     CHECK(rep["warnings"] == 0);
@@ -1083,7 +1085,7 @@ TEST_CASE("glTF-Validator: a copy written elsewhere carries the source's image f
   json kept = json::parse(readText(dir + "/out/copy.gltf"));
   kept["images"][0] = {{"uri", "tex%20ture.png"}};
   std::ofstream(dir + "/out/kept.gltf") << kept.dump();
-  CHECK(validate(dir + "/out/kept.gltf")["errors"].get<int>() > 0);
+  CHECK(gltfValidate(dir + "/out/kept.gltf")["errors"].get<int>() > 0);
 }
 
 TEST_CASE("glTF-Validator: the Babylon target's EXT_lights_image_based scene", "[engines][gltf]") {
@@ -1091,19 +1093,12 @@ TEST_CASE("glTF-Validator: the Babylon target's EXT_lights_image_based scene", "
   // has no schema for EXT_lights_image_based, a vendor extension) and UNUSED_OBJECT for each
   // image (they are referenced only from inside that extension). Seen failing: a copy whose
   // first buffer view runs 4 bytes past the binary chunk (BUFFER_VIEW_TOO_LONG).
-  const std::string js = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/js/";
-  if (test::runShell("command -v node").exitCode != 0 || !test::fileExists(js + "node_modules/gltf-validator/package.json"))
+  if (!gltfValidatorReady())
     PRTBAKE_SKIP("node or tests/js/node_modules absent (npm ci in tests/js): glTF-Validator cannot run");
   const std::string dir = test::tempDir("gltf_validator_ibl");
   REQUIRE(test::runCli("ibl '" + kSky + "' -o '" + dir + "/pkg' --target babylon --size 16 --quiet").exitCode == 0);
-  auto validate = [&](const std::string& file) {
-    const test::CliResult r = test::runShell("node '" + js + "gltf_validate.mjs' '" + file + "'");
-    INFO(r.output.substr(0, 3000));
-    REQUIRE(r.exitCode == 0);
-    return json::parse(r.output);
-  };
   const std::string glb = dir + "/pkg/babylon/environment.glb";
-  const json rep = validate(glb);
+  const json rep = gltfValidate(glb);
   INFO(rep.dump().substr(0, 2000));
   CHECK(rep["errors"] == 0);
   CHECK(rep["warnings"] == 0);
@@ -1131,7 +1126,7 @@ TEST_CASE("glTF-Validator: the Babylon target's EXT_lights_image_based scene", "
   std::memcpy(&broken[8], &total, 4);
   broken += std::string(reinterpret_cast<const char*>(&newLen), 4) + "JSON" + text + bytes.substr(20 + jsonLen);
   std::ofstream(dir + "/broken.glb", std::ios::binary) << broken;
-  CHECK(validate(dir + "/broken.glb")["errors"].get<int>() > 0);
+  CHECK(gltfValidate(dir + "/broken.glb")["errors"].get<int>() > 0);
 }
 
 TEST_CASE("Jobs: an ibl job writes its package directory, skips when up to date, replaces it when forced", "[engines][jobs]") {
