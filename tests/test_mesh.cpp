@@ -128,6 +128,75 @@ TEST_CASE("glTF loader: strips, fans, non-indexed, data URIs, transforms, normal
   CHECK(area == Approx(3.0));
 }
 
+// Sparse accessors were not read: their replaced elements kept the base values (zeros without a
+// buffer view), so a mesh stored that way lost its shape without a word; and a file that
+// requires Draco compression had accessors without data: "vertex 0 has length 0 (glTF 2.0
+// requires unit normals)".
+TEST_CASE("glTF loader: sparse accessors replace the elements they name, and unknown required extensions are refused",
+          "[mesh]") {
+  const std::string dir = test::tempDir("mesh-sparse");
+  const std::vector<float> square = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  const std::vector<uint8_t> tris = {0, 1, 3, 0, 3, 2};
+  const std::vector<uint16_t> one = {3}, all = {0, 1, 2, 3};
+  const std::vector<float> moved = {2, 3, 0.5f};
+  std::string buf;
+  append(buf, square);  // 0..48
+  append(buf, tris);    // 48..54
+  buf.resize(56);
+  append(buf, one);     // 56..58
+  buf.resize(60);
+  append(buf, moved);   // 60..72
+  append(buf, all);     // 72..80
+  append(buf, square);  // 80..128
+  auto gltf = [&](const std::string& name, const std::string& position, const std::string& extra) {
+    writeText(dir + "/" + name, R"({"asset": {"version": "2.0"}, )" + extra + R"(
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}], "nodes": [{"mesh": 0}],
+  "buffers": [{"byteLength": 128, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 6},
+                  {"buffer": 0, "byteOffset": 56, "byteLength": 2}, {"buffer": 0, "byteOffset": 60, "byteLength": 12},
+                  {"buffer": 0, "byteOffset": 72, "byteLength": 8}, {"buffer": 0, "byteOffset": 80, "byteLength": 48}],
+  "accessors": [)" + position + R"(, {"bufferView": 1, "componentType": 5121, "count": 6, "type": "SCALAR"}]})");
+    return dir + "/" + name;
+  };
+  // Vertex 3 moved by a sparse accessor over the square.
+  const Mesh m = loadMesh(gltf("one.gltf", R"({"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+    "sparse": {"count": 1, "indices": {"bufferView": 2, "componentType": 5123}, "values": {"bufferView": 3}}})", ""));
+  REQUIRE(m.vertexCount() == 4);
+  const std::vector<float> expect = {0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 3, 0.5f};
+  CHECK(m.positions == expect);
+  // No buffer view: zeros, every element replaced (the square itself).
+  const Mesh z = loadMesh(gltf("all.gltf", R"({"componentType": 5126, "count": 4, "type": "VEC3",
+    "sparse": {"count": 4, "indices": {"bufferView": 4, "componentType": 5123}, "values": {"bufferView": 5}}})", ""));
+  CHECK(z.positions == square);
+  // Bad sparse data: an index past the count, more replacements than elements.
+  auto refused = [&](const std::string& path, const std::string& what) {
+    INFO(path);
+    try {
+      loadMesh(path);
+      FAIL("accepted");
+    } catch (const InputError& e) {
+      CHECK(e.subject() == path);
+      CHECK_THAT(e.detail(), Catch::Contains(what));
+    }
+  };
+  refused(gltf("past.gltf", R"({"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+    "sparse": {"count": 1, "indices": {"bufferView": 2, "componentType": 5123}, "values": {"bufferView": 3}}})", ""),
+          "replaces element 3 of 3");
+  refused(gltf("many.gltf", R"({"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+    "sparse": {"count": 9, "indices": {"bufferView": 2, "componentType": 5123}, "values": {"bufferView": 3}}})", ""),
+          "replaces 9 of its 4 elements");
+  // Required extensions: geometry this loader does not decode is refused; quantised is read.
+  const std::string plain = R"({"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"})";
+  refused(gltf("draco.gltf", plain, R"("extensionsUsed": ["KHR_draco_mesh_compression"],
+    "extensionsRequired": ["KHR_draco_mesh_compression"],)"),
+          "requires the glTF extension KHR_draco_mesh_compression, which this loader does not read");
+  refused(gltf("instanced.gltf", plain, R"("extensionsUsed": ["EXT_mesh_gpu_instancing"],
+    "extensionsRequired": ["EXT_mesh_gpu_instancing"],)"),
+          "requires the glTF extension EXT_mesh_gpu_instancing");
+  CHECK(loadMesh(gltf("quantised.gltf", plain, R"("extensionsUsed": ["KHR_mesh_quantization"],
+    "extensionsRequired": ["KHR_mesh_quantization"],)")).positions == square);
+}
+
 TEST_CASE("glTF loader: Box.glb in world space", "[mesh][data]") {
   const std::string path = test::dataFile("meshes/gltf/Box.glb");
   PRTBAKE_SKIP_IF_NO_DATA(path);

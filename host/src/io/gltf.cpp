@@ -69,6 +69,19 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
     throw InputError(path, "not a valid glTF 2.0 file: " + (err.empty() ? std::string("parse error") : err));
   }
+  // Required extensions: those that leave the accessors, nodes and base colour as core glTF
+  // reads them are fine; another (compressed or instanced geometry, or one not known here)
+  // would be read wrong, so the file is refused.
+  for (const auto& e : model.extensionsRequired) {
+    static const char* const kReadable[] = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_texture_basisu",
+                                            "EXT_texture_webp", "EXT_texture_avif", "KHR_lights_punctual",
+                                            "KHR_materials_variants", "KHR_xmp_json_ld"};
+    const bool readable = e.rfind("KHR_materials_", 0) == 0 ||
+                          std::any_of(std::begin(kReadable), std::end(kReadable), [&](const char* k) { return e == k; });
+    if (!readable)
+      throw InputError(path, "requires the glTF extension " + e +
+                                 ", which this loader does not read (store the geometry without it)");
+  }
   if (files) *files = std::move(external);
 }
 
@@ -130,6 +143,53 @@ std::vector<int> gltfRootNodes(const tinygltf::Model& model) {
   return roots;
 }
 
+namespace {
+
+// The first byte of `count` elements of `elementBytes` bytes, `stride` apart (0: the view's
+// stride, or packed), at `byteOffset` in buffer view `viewIndex`: each number checked against
+// the views and buffers first (`name` in the messages).
+const unsigned char* viewElements(const tinygltf::Model& model, int viewIndex, size_t byteOffset, size_t count,
+                                  size_t elementBytes, size_t* stride, const std::string& path, const std::string& what,
+                                  const std::string& name) {
+  if (viewIndex < 0 || viewIndex >= int(model.bufferViews.size()))
+    throw InputError(path, what + ": buffer view " + std::to_string(viewIndex) + " does not exist");
+  const auto& view = model.bufferViews[size_t(viewIndex)];
+  if (view.buffer < 0 || view.buffer >= int(model.buffers.size()))
+    throw InputError(path, what + ": buffer " + std::to_string(view.buffer) + " does not exist");
+  const auto& buf = model.buffers[size_t(view.buffer)].data;
+  const std::string past = name + " runs past the end of its buffer (truncated file?)";
+  // Each comparison keeps the next subtraction or product from wrapping around.
+  if (view.byteOffset > buf.size() || view.byteLength > buf.size() - view.byteOffset)
+    throw InputError(path, what + ": buffer view " + std::to_string(viewIndex) +
+                               " runs past the end of its buffer (truncated file?)");
+  if (view.byteStride != 0 && (view.byteStride < elementBytes || view.byteStride > 252))
+    throw InputError(path, what + ": buffer view " + std::to_string(viewIndex) + " has byte stride " +
+                               std::to_string(view.byteStride) + " (an element of " + name + " takes " +
+                               std::to_string(elementBytes) + " bytes; the most is 252)");
+  *stride = view.byteStride ? view.byteStride : elementBytes;
+  if (byteOffset > view.byteLength || count > view.byteLength) throw InputError(path, past);
+  if (count > 0 && (count - 1) * *stride + elementBytes > view.byteLength - byteOffset) throw InputError(path, past);
+  return buf.data() + view.byteOffset + byteOffset;
+}
+
+// Component c of the element at p, as readAccessor gives it.
+double component(const unsigned char* p, int componentType, bool normalized, const std::string& path,
+                 const std::string& name) {
+  switch (componentType) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
+    case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); return d; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? *p / 255.0 : *p;
+    case TINYGLTF_COMPONENT_TYPE_BYTE: { const double v = *reinterpret_cast<const signed char*>(p); return normalized ? std::max(v / 127.0, -1.0) : v; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t u; std::memcpy(&u, p, 2); return normalized ? u / 65535.0 : u; }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t v; std::memcpy(&v, p, 2); return normalized ? std::max(v / 32767.0, -1.0) : v; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t u; std::memcpy(&u, p, 4); return u; }
+    case TINYGLTF_COMPONENT_TYPE_INT: { int32_t v; std::memcpy(&v, p, 4); return v; }
+    default: throw InputError(path, name + " has an unsupported component type");
+  }
+}
+
+}  // namespace
+
 // See gltf_common.h: every number the file gives is checked before it is used.
 std::vector<double> readAccessor(const tinygltf::Model& model, int index, int comps, const std::string& path,
                                  const std::string& what, size_t expectedCount) {
@@ -145,47 +205,41 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
   if (csize <= 0) throw InputError(path, name + " has an unsupported component type");
   const size_t elementBytes = size_t(ncomp) * size_t(csize);
   checkInputMemory(path, name + " (" + std::to_string(acc.count) + " elements)", 8.0 * double(acc.count) * comps);
-  if (acc.bufferView < 0)  // all zeros (sparse accessors are not read)
-    return std::vector<double>(acc.count * size_t(comps), 0.0);
-  if (acc.bufferView >= int(model.bufferViews.size()))
-    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " does not exist");
-  const auto& view = model.bufferViews[size_t(acc.bufferView)];
-  if (view.buffer < 0 || view.buffer >= int(model.buffers.size()))
-    throw InputError(path, what + ": buffer " + std::to_string(view.buffer) + " does not exist");
-  const auto& buf = model.buffers[size_t(view.buffer)].data;
-  const std::string past = name + " runs past the end of its buffer (truncated file?)";
-  // Each comparison keeps the next subtraction or product from wrapping around.
-  if (view.byteOffset > buf.size() || view.byteLength > buf.size() - view.byteOffset)
-    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) +
-                               " runs past the end of its buffer (truncated file?)");
-  if (view.byteStride != 0 && (view.byteStride < elementBytes || view.byteStride > 252))
-    throw InputError(path, what + ": buffer view " + std::to_string(acc.bufferView) + " has byte stride " +
-                               std::to_string(view.byteStride) + " (an element of accessor " + std::to_string(index) +
-                               " takes " + std::to_string(elementBytes) + " bytes; the most is 252)");
-  const size_t stride = view.byteStride ? view.byteStride : elementBytes;
-  if (acc.byteOffset > view.byteLength || acc.count > view.byteLength) throw InputError(path, past);
-  if (acc.count > 0 && (acc.count - 1) * stride + elementBytes > view.byteLength - acc.byteOffset)
-    throw InputError(path, past);
-  const size_t start = view.byteOffset + acc.byteOffset;
-  // Allocated only once the count is known to fit the buffer.
-  std::vector<double> out(acc.count * size_t(comps), 0.0);
-  for (size_t i = 0; i < acc.count; ++i) {
-    const unsigned char* e = buf.data() + start + i * stride;
-    for (int c = 0; c < comps; ++c) {
-      const unsigned char* p = e + size_t(c) * csize;
-      double v = 0;
-      switch (acc.componentType) {
-        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
-        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); v = d; break; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = *p; if (acc.normalized) v /= 255.0; break;
-        case TINYGLTF_COMPONENT_TYPE_BYTE: v = *reinterpret_cast<const signed char*>(p); if (acc.normalized) v = std::max(v / 127.0, -1.0); break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t u; std::memcpy(&u, p, 2); v = u; if (acc.normalized) v /= 65535.0; break; }
-        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t s; std::memcpy(&s, p, 2); v = s; if (acc.normalized) v = std::max(v / 32767.0, -1.0); break; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t u; std::memcpy(&u, p, 4); v = u; break; }
-        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t s; std::memcpy(&s, p, 4); v = s; break; }
-        default: throw InputError(path, name + " has an unsupported component type");
-      }
-      out[i * comps + c] = v;
+  // Without a buffer view every element is zero (and a sparse accessor replaces some).
+  std::vector<double> out;
+  if (acc.bufferView < 0) {
+    out.assign(acc.count * size_t(comps), 0.0);
+  } else {
+    size_t stride = 0;
+    const unsigned char* e = viewElements(model, acc.bufferView, acc.byteOffset, acc.count, elementBytes, &stride, path,
+                                          what, name);
+    out.assign(acc.count * size_t(comps), 0.0);  // allocated once the count is known to fit the buffer
+    for (size_t i = 0; i < acc.count; ++i, e += stride)
+      for (int c = 0; c < comps; ++c) out[i * comps + c] = component(e + size_t(c) * csize, acc.componentType, acc.normalized, path, name);
+  }
+  if (acc.sparse.isSparse) {  // `count` elements replaced: their indices, then their values, each packed
+    const std::string sparse = name + " (sparse)";
+    const auto& ix = acc.sparse.indices;
+    const int isize = tinygltf::GetComponentSizeInBytes(uint32_t(ix.componentType));
+    if (acc.sparse.count < 1 || size_t(acc.sparse.count) > acc.count)
+      throw InputError(path, sparse + " replaces " + std::to_string(acc.sparse.count) + " of its " +
+                                 std::to_string(acc.count) + " elements");
+    if (ix.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && ix.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        ix.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+      throw InputError(path, sparse + " has indices that are not unsigned integers");
+    const size_t n = size_t(acc.sparse.count);
+    size_t istride = 0, vstride = 0;
+    const unsigned char* idx = viewElements(model, ix.bufferView, size_t(std::max(ix.byteOffset, 0)), n, size_t(isize),
+                                            &istride, path, what, sparse + " indices");
+    const unsigned char* val = viewElements(model, acc.sparse.values.bufferView,
+                                            size_t(std::max(acc.sparse.values.byteOffset, 0)), n, elementBytes, &vstride,
+                                            path, what, sparse + " values");
+    for (size_t k = 0; k < n; ++k) {
+      const double i = component(idx + k * size_t(isize), ix.componentType, false, path, sparse);
+      if (!(i < double(acc.count)))
+        throw InputError(path, sparse + " replaces element " + std::to_string(int64_t(i)) + " of " + std::to_string(acc.count));
+      for (int c = 0; c < comps; ++c)
+        out[size_t(i) * comps + c] = component(val + k * elementBytes + size_t(c) * csize, acc.componentType, acc.normalized, path, sparse);
     }
   }
   return out;
