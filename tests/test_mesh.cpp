@@ -197,6 +197,34 @@ TEST_CASE("glTF loader: sparse accessors replace the elements they name, and unk
     "extensionsRequired": ["KHR_mesh_quantization"],)")).positions == square);
 }
 
+// 40 nodes, each with two children that are the same next node: 2^40 instances of the square,
+// which ran the loader out of memory ("out of host memory", no file named). glTF 2.0 gives a node
+// one parent; a node reached twice is refused, as a cycle is.
+TEST_CASE("glTF loader: a node with two parents is refused before its instances multiply", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-dag");
+  const std::vector<float> square = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  const std::vector<uint8_t> tris = {0, 1, 3, 0, 3, 2};
+  std::string buf;
+  append(buf, square);
+  append(buf, tris);
+  std::string nodes;
+  for (int i = 0; i < 40; ++i) nodes += R"({"children": [)" + std::to_string(i + 1) + ", " + std::to_string(i + 1) + "]}, ";
+  const std::string path = dir + "/dag.gltf";
+  writeText(path, R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [)" + nodes + R"({"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "buffers": [{"byteLength": 54, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 6}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+                {"bufferView": 1, "componentType": 5121, "count": 6, "type": "SCALAR"}]})");
+  try {
+    loadMesh(path);
+    FAIL("accepted");
+  } catch (const InputError& e) {
+    CHECK(e.subject() == path);
+    CHECK_THAT(e.detail(), Catch::StartsWith("node 40 is reached twice"));
+  }
+}
+
 TEST_CASE("glTF loader: Box.glb in world space", "[mesh][data]") {
   const std::string path = test::dataFile("meshes/gltf/Box.glb");
   PRTBAKE_SKIP_IF_NO_DATA(path);

@@ -261,11 +261,17 @@ Mesh loadGltf(const std::string& path) {
   mesh.inputFiles = {path};
   mesh.inputFiles.insert(mesh.inputFiles.end(), external.begin(), external.end());
   mesh.format = Mesh::Format::Gltf;
-  std::vector<char> onPath(model.nodes.size(), 0);
+  // Each node is walked once: one reached again is a cycle, or has two parents (which glTF 2.0
+  // forbids; a chain of such nodes would multiply the instances without bound).
+  std::vector<char> onPath(model.nodes.size(), 0), walked(model.nodes.size(), 0);
   std::function<void(int, const Mat4&)> walk = [&](int ni, const Mat4& parent) {
     if (ni < 0 || ni >= int(model.nodes.size())) throw InputError(path, "node " + std::to_string(ni) + " does not exist");
     if (onPath[ni]) throw InputError(path, "the node hierarchy has a cycle at node " + std::to_string(ni));
-    onPath[ni] = 1;
+    if (walked[ni])
+      throw InputError(path, "node " + std::to_string(ni) +
+                                 " is reached twice: a child of two nodes, or a scene root twice or also a child "
+                                 "(glTF 2.0 gives a node one parent)");
+    onPath[ni] = walked[ni] = 1;
     const auto& node = model.nodes[ni];
     const Mat4 world = mul(parent, nodeMatrix(node));
     if (node.mesh >= 0) {
