@@ -11,6 +11,7 @@
 
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
+#include "prtbake/limits.h"
 #include "prtbake/mesh.h"
 #include "test_common.h"
 
@@ -200,7 +201,7 @@ TEST_CASE("glTF loader: sparse accessors replace the elements they name, and unk
 // 40 nodes, each with two children that are the same next node: 2^40 instances of the square,
 // which ran the loader out of memory ("out of host memory", no file named). glTF 2.0 gives a node
 // one parent; a node reached twice is refused, as a cycle is.
-TEST_CASE("glTF loader: a node with two parents is refused before its instances multiply", "[mesh]") {
+TEST_CASE("glTF loader: a node with two parents is refused, and instances count against the input memory limit", "[mesh]") {
   const std::string dir = test::tempDir("mesh-dag");
   const std::vector<float> square = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
   const std::vector<uint8_t> tris = {0, 1, 3, 0, 3, 2};
@@ -223,6 +224,28 @@ TEST_CASE("glTF loader: a node with two parents is refused before its instances 
     CHECK(e.subject() == path);
     CHECK_THAT(e.detail(), Catch::StartsWith("node 40 is reached twice"));
   }
+  // Legal instancing counts too: 2,000 nodes of the square are 8,000 vertices (about 416 KB in
+  // the mesh's arrays), refused under a 0.25 MiB input limit and loaded under the default.
+  nodes.clear();
+  for (int i = 0; i < 2000; ++i) nodes += std::string(i ? ", " : "") + R"({"mesh": 0, "translation": [0, 0, )" + std::to_string(i) + "]}";
+  std::string roots;
+  for (int i = 0; i < 2000; ++i) roots += (i ? ", " : "") + std::to_string(i);
+  const std::string many = dir + "/many.gltf";
+  writeText(many, R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [)" + roots + R"(]}], "nodes": [)" + nodes + R"(],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "buffers": [{"byteLength": 54, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 6}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+                {"bufferView": 1, "componentType": 5121, "count": 6, "type": "SCALAR"}]})");
+  CHECK(loadMesh(many).vertexCount() == 8000);
+  setInputMemoryLimit(size_t(0.25 * 1048576));
+  try {
+    loadMesh(many);
+    FAIL("accepted");
+  } catch (const InputError& e) {
+    CHECK_THAT(e.detail(), Catch::Contains("vertices (every instance of every primitive) needs"));
+  }
+  setInputMemoryLimit(0);
 }
 
 TEST_CASE("glTF loader: Box.glb in world space", "[mesh][data]") {

@@ -233,6 +233,12 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
   const PrimitiveAttributes attrs = readAttributes(model, prim, path, what);
   checkUnitNormals(attrs.normal, path, what);
   const std::vector<uint32_t> tris = triangulate(mode, readCorners(model, prim, attrs.vertexCount, path, what));
+  // The scene's vertices, every instance of every primitive (a small file can instance a large
+  // primitive many times), against the input memory limit and 32-bit indices.
+  const double vertices = double(mesh.vertexCount()) + double(attrs.vertexCount);
+  checkInputMemory(path, "the scene's " + std::to_string(int64_t(vertices)) + " vertices (every instance of every primitive)",
+                   vertices * (52.0 + 8.0 * double(mesh.uvs.size())) + 4.0 * double(mesh.indices.size() + tris.size()));
+  if (vertices > 4294967295.0) throw InputError(path, "the scene has more than 2^32 - 1 vertices");
   const uint32_t first = uint32_t(mesh.vertexCount());
   if (!tris.empty())
     for (size_t k = 0; k < mesh.uvMissing.size(); ++k)
