@@ -194,3 +194,47 @@ TEST_CASE("CLI transport: bad input and bad options fail cleanly with no output"
     CHECK(readNpy(dir + "/b.npy").header.find("'shape': (24, 3, 9)") != std::string::npos);
   }
 }
+
+// A mesh whose transport cannot fit is refused before the bake, naming the mesh, and the
+// estimate lies above real bakes' peaks (so a refusal never stops a bake that fits) and within
+// 3x of them (a wrong factor would refuse meshes that fit). The meshes: the demo scene instanced
+// along y (each instance is stored: 1,681+ vertices apiece), shadowed and interreflected (the
+// scene's colours: RGB transport).
+TEST_CASE("CLI transport: a mesh beyond the memory the process can have is refused, and the estimate bounds real peaks",
+          "[transport][cli]") {
+  const std::string dir = test::tempDir("cli-transport-memory");
+  const std::string assets = std::string(PRTBAKE_TEST_SOURCE_DIR) + "/../assets/";
+  nlohmann::json scene = nlohmann::json::parse(readFile(assets + "scene.gltf"));
+  std::ofstream(dir + "/scene.bin", std::ios::binary) << readFile(assets + "scene.bin");
+  const size_t n0 = scene["nodes"].size();
+  auto& roots = scene["scenes"][scene.value("scene", 0)]["nodes"];
+  for (int i = 0; i < 150; ++i) {
+    scene["nodes"].push_back({{"mesh", 0}, {"translation", {0, 0.01 * i, 0}}});
+    roots.push_back(n0 + i);
+  }
+  std::ofstream(dir + "/many.gltf") << scene.dump();
+  const Mesh mesh = loadMesh(dir + "/many.gltf");
+  INFO(mesh.vertexCount() << " vertices");
+  const auto refused = test::runShell("PRTBAKE_MEMORY_LIMIT_MB=100 '" + std::string(PRTBAKE_CLI_PATH) + "' transport '" +
+                                      dir + "/many.gltf' -o '" + dir + "/no.npy' --quiet");
+  INFO(refused.output);
+  CHECK(refused.exitCode == 2);
+  CHECK_THAT(refused.output, Catch::StartsWith("prtbake: error: " + dir + "/many.gltf: transport of " +
+                                               std::to_string(mesh.vertexCount()) + " vertices at order 3 needs about"));
+  CHECK_FALSE(test::fileExists(dir + "/no.npy"));
+  for (const auto& [mode, order] : std::vector<std::pair<std::string, int>>{{"shadowed", 3}, {"shadowed", 8}, {"interreflected", 3}}) {
+    TransportOptions o;
+    o.mode = parseTransportMode(mode), o.order = order;
+    const double estimate = transportPeakBytes(mesh, o);
+    std::vector<std::string> args = {"transport", dir + "/many.gltf", "-o", dir + "/t.npy", "--mode", mode, "--order",
+                                     std::to_string(order), "--samples", "16", "--quiet"};
+    if (mode == "interreflected") args.insert(args.end(), {"--bounces", "1"});
+    const auto r = test::runCliMeasured(args, dir + "/run.txt");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    const double peak = r.peakMiB * 1048576;
+    INFO(mode << " order " << order << ": peak " << peak / 1048576 << " MiB, estimate " << estimate / 1048576 << " MiB");
+    CHECK(peak <= estimate);
+    CHECK(peak >= estimate / 3);
+  }
+}

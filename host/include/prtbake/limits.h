@@ -26,8 +26,12 @@ void setInputMemoryLimit(size_t bytes);
 // limit. `bytes` is a double so that a product of header fields cannot wrap.
 void checkInputMemory(const std::string& subject, const std::string& what, double bytes);
 
+// The memory of the process before its work: the OpenCL runtime and its compiler at their peak
+// (measured: 160 MiB with the transport kernels of order 3, 280 MiB with those of order 8).
+constexpr double kRuntimeMemoryBytes = 320.0 * 1048576;
+
 // The memory this process can have: the machine's physical memory, or less under its cgroup's
-// limit (a container, a Slurm job's --mem); read once.
+// limit (a container, a Slurm job's --mem) or PRTBAKE_MEMORY_LIMIT_MB (MiB); read once.
 double processMemoryBytes();
 // Throws UsageError(subject, "<what> needs about N GiB at its peak, more than the M GiB this
 // process can have ...") when `bytes`, a work's estimated peak, exceed processMemoryBytes():

@@ -139,6 +139,15 @@ struct SurfacePoints {
   size_t count() const { return positions.size() / 3; }
 };
 
+// The estimated peak memory in bytes of computeTransport(mesh, options), fitted to peaks
+// measured on 0.26 M to 10 M vertices (docs/transport.md, "Memory"): the runtime's memory
+// (kRuntimeMemoryBytes, prtbake/limits.h), 500 bytes a mesh
+// vertex (the mesh, the tree, the rays' set-up) and 16 bytes for each coefficient baked (the
+// device's, the kernel's and the result's copies), three times over with interreflection; it
+// errs high. computeTransport refuses a mesh whose estimate exceeds the memory the process can
+// have (checkProcessMemory, prtbake/limits.h) with a UsageError naming the mesh.
+double transportPeakBytes(const Mesh& mesh, const TransportOptions& options);
+
 // The transport of each point, as computeTransport defines a vertex's, traced against `mesh`:
 // point i takes the rays a vertex of index i would (the same directions, the frame's rotation
 // from i), from its position offset along its face normal. Interreflected: the direct term at

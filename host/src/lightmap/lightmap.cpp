@@ -562,7 +562,7 @@ int lightmapSize(const Mesh& mesh, const LightmapOptions& o) {
 }
 
 // The bake's peak memory, fitted to peaks measured at 512² to 4096² (docs/lightmap.md, "Memory"):
-// about 128 MiB for the process, 320 bytes a texel for the samples, their rays' set-up and the
+// the runtime's memory (kRuntimeMemoryBytes), 320 bytes a texel for the samples, their rays' set-up and the
 // device's copies, and 12 bytes for each float a texel holds (its products and the transport
 // they come from, four sets of it with bounces: the device's, the host's and the map's copies).
 // It errs high, by up to 2x for sh.
@@ -574,7 +574,7 @@ double lightmapPeakBytes(const LightmapOptions& o, int W, int H) {
   if (o.products & kLightmapIrradiance) floats += 3;
   if (o.products & kLightmapTransport) floats += nc;
   if (o.products & kLightmapSh) floats += 3.0 * o.shOrder * o.shOrder;
-  return 128.0 * 1048576 + double(W) * H * (320 + 12 * floats);
+  return kRuntimeMemoryBytes + double(W) * H * (320 + 12 * floats);
 }
 
 LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& o) {

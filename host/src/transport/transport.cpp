@@ -14,6 +14,7 @@
 #include "prtbake/bvh.h"
 #include "prtbake/clock.h"
 #include "prtbake/error.h"
+#include "prtbake/limits.h"
 #include "prtbake/sh.h"
 #include "core/tolerance_pilot.h"
 #include "transport/transport_setup.h"
@@ -556,6 +557,13 @@ TransportOptions checkedFor(const Runtime& rt, const TransportOptions& options) 
 
 }  // namespace
 
+double transportPeakBytes(const Mesh& mesh, const TransportOptions& o) {
+  const double interreflected = o.mode == TransportMode::Interreflected ? 3 : 1;
+  const double channels = detail::transportIsRgb(mesh, o) ? 3 : 1;
+  return kRuntimeMemoryBytes + interreflected * (500.0 * double(mesh.vertexCount()) +
+                                             16.0 * o.order * o.order * channels * double(rangeSize(mesh, o)));
+}
+
 TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportOptions& options) {
   const auto tStart = Clock::now();
   const TransportOptions o = checkedFor(rt, options);
@@ -572,6 +580,9 @@ TransportResult computeTransport(Runtime& rt, const Mesh& mesh, const TransportO
     r.totalSeconds = secondsSince(tStart);
     return r;
   }
+  checkProcessMemory(mesh.sourcePath.empty() ? "mesh" : mesh.sourcePath,
+                     "transport of " + std::to_string(count) + " vertices at order " + std::to_string(o.order),
+                     transportPeakBytes(mesh, o));
   const detail::RaySetup setup = detail::makeRaySetup(mesh, o, false);
   std::vector<uint32_t> range(count);
   for (size_t i = 0; i < count; ++i) range[i] = uint32_t(first + i);
