@@ -48,6 +48,9 @@ int removeStaleTempFiles(const std::string& dir);
 
 // Reads a whole file; throws InputError naming the file when it cannot be read.
 std::string readFile(const std::string& path);
+// The first `most` bytes of a file (all of a shorter one), and its size in *fileSize when given;
+// throws as readFile.
+std::string readFilePrefix(const std::string& path, size_t most, size_t* fileSize = nullptr);
 
 // The size of the regular file `path` (links followed). Throws InputError naming it when it is
 // missing, a directory, or a device, pipe or socket: reading /dev/zero never ends, opening a FIFO

@@ -7,11 +7,14 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
@@ -130,6 +133,17 @@ size_t inputFileSize(const std::string& path) {
   if (S_ISDIR(st.st_mode)) throw InputError(path, "is a directory, expected a file");
   if (!S_ISREG(st.st_mode)) throw InputError(path, "not a regular file (a device, pipe or socket), expected a file");
   return size_t(st.st_size);
+}
+
+std::string readFilePrefix(const std::string& path, size_t most, size_t* fileSize) {
+  const size_t size = inputFileSize(path);
+  if (fileSize) *fileSize = size;
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  std::string b(std::min(most, size), '\0');
+  b.resize(std::fread(b.data(), 1, b.size(), f.get()));
+  if (std::ferror(f.get())) throw InputError(path, std::string("cannot read: ") + std::strerror(errno));
+  return b;
 }
 
 std::string readFile(const std::string& path) {

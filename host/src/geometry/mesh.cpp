@@ -39,7 +39,17 @@ std::vector<std::string> gltfExternalUris(const std::string& path) {
   if (ext != "gltf" && ext != "glb") return {};
   std::vector<std::string> uris;
   try {
-    for (const auto& u : detail::gltfUris(readFile(path))) uris.push_back(u.uri);
+    // A GLB's URIs are in its JSON chunk, the first: only that much is read (its BIN chunk may be
+    // gigabytes).
+    std::string bytes = readFilePrefix(path, 20);
+    if (bytes.size() == 20 && bytes.compare(0, 4, "glTF") == 0) {
+      const uint32_t length = uint32_t(uint8_t(bytes[12])) | uint32_t(uint8_t(bytes[13])) << 8 |
+                              uint32_t(uint8_t(bytes[14])) << 16 | uint32_t(uint8_t(bytes[15])) << 24;
+      bytes = readFilePrefix(path, 20 + size_t(length));
+    } else {
+      bytes = readFile(path);
+    }
+    for (const auto& u : detail::gltfUris(bytes)) uris.push_back(u.uri);
   } catch (const std::exception&) {
   }
   return uris;

@@ -78,17 +78,6 @@ double maxExpansion(int compression) {
 // it is read for the walk (a file's pixels may be gigabytes).
 constexpr size_t kHeaderBytes = size_t(64) << 20;
 
-// The first `most` bytes of the file, and its size.
-std::string readPrefix(const std::string& path, size_t most, size_t* fileSize) {
-  *fileSize = inputFileSize(path);
-  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  std::string b(std::min(most, *fileSize), '\0');
-  b.resize(std::fread(b.data(), 1, b.size(), f.get()));
-  if (std::ferror(f.get())) throw InputError(path, std::string("cannot read: ") + std::strerror(errno));
-  return b;
-}
-
 InputError corruptHeader(const std::string& path, const std::string& what) {
   return InputError(path, "corrupt OpenEXR header: " + what);
 }
@@ -177,7 +166,7 @@ void checkPixelBytes(const std::string& path, const ExrHeaderFacts& facts, const
 
 ExrHeaderFacts checkExrHeader(const std::string& path) {
   size_t fileSize = 0;
-  const std::string b = readPrefix(path, kHeaderBytes, &fileSize);
+  const std::string b = readFilePrefix(path, kHeaderBytes, &fileSize);
   auto corrupt = [&](const std::string& what) { return corruptHeader(path, what); };
   if (b.size() < 8) throw InputError(path, "truncated OpenEXR file (" + std::to_string(b.size()) + " bytes)");
   const bool whole = b.size() == fileSize;
