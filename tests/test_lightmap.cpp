@@ -1007,8 +1007,8 @@ TEST_CASE("Lightmap: a size beyond the memory the process can have is refused at
                                     "ao,transport --order 8 --quiet");
   INFO(refused.output);
   CHECK(refused.exitCode == 2);
-  CHECK_THAT(refused.output, Catch::StartsWith("prtbake: error: --size: a 16384x16384 lightmap with ao,transport at order "
-                                               "8 needs about ") && Catch::Contains("GiB at its peak, more than the"));
+  CHECK_THAT(refused.output, Catch::StartsWith("prtbake: error: --size: a lightmap of 16384x16384 texels with ao,transport "
+                                               "at order 8 needs about ") && Catch::Contains("GiB at its peak, more than the"));
   CHECK_FALSE(test::fileExists(dir + "/big"));
   struct Bake {
     unsigned products;

@@ -31,7 +31,8 @@ void checkInputMemory(const std::string& subject, const std::string& what, doubl
 constexpr double kRuntimeMemoryBytes = 320.0 * 1048576;
 
 // The memory this process can have: the machine's physical memory, or less under its cgroup's
-// limit (a container, a Slurm job's --mem) or PRTBAKE_MEMORY_LIMIT_MB (MiB); read once.
+// limit (a container, a Slurm job's --mem); PRTBAKE_MEMORY_LIMIT_MB (MiB), when set, in place of
+// both (less, or more where swap will do); read once.
 double processMemoryBytes();
 // Throws UsageError(subject, "<what> needs about N GiB at its peak, more than the M GiB this
 // process can have ...") when `bytes`, a work's estimated peak, exceed processMemoryBytes():

@@ -69,13 +69,14 @@ double processMemoryBytes() {
       double v = 0;
       if (in >> v && v > 0) b = std::min(b, v);
     }
-    // Less by choice: PRTBAKE_MEMORY_LIMIT_MB (a shared machine's share).
+    // Or as the user says: PRTBAKE_MEMORY_LIMIT_MB (a shared machine's share, or more than the
+    // machine has where swap or a tighter estimate would do).
     if (const char* v = std::getenv("PRTBAKE_MEMORY_LIMIT_MB"); v && *v) {
       char* end = nullptr;
       const double mb = std::strtod(v, &end);
       if (*end != '\0' || !std::isfinite(mb) || mb < 1 || mb > 1e9)
         throw UsageError("PRTBAKE_MEMORY_LIMIT_MB", std::string("expected a number of MiB in [1, 1e9], got '") + v + "'");
-      b = std::min(b, mb * 1048576.0);
+      b = mb * 1048576.0;
     }
     return b;
   }();
@@ -88,8 +89,8 @@ void checkProcessMemory(const std::string& subject, const std::string& what, dou
     std::ostringstream s;
     s.precision(1);
     s << std::fixed << what << " needs about " << bytes / 1073741824.0 << " GiB at its peak, more than the "
-      << have / 1073741824.0 << " GiB this process can have (the machine's memory, its cgroup's limit or "
-      << "PRTBAKE_MEMORY_LIMIT_MB)";
+      << have / 1073741824.0 << " GiB this process can have (the machine's memory or its cgroup's limit; "
+      << "PRTBAKE_MEMORY_LIMIT_MB sets another)";
     throw UsageError(subject, s.str());
   }
 }

@@ -586,7 +586,7 @@ LightmapSamples lightmapSamples(const Mesh& mesh, const LightmapOptions& o) {
   lm.uvSet = resolveUvSet(mesh, o.uvSet);
   lm.width = lm.height = lightmapSize(mesh, o);
   checkProcessMemory(o.size ? "--size" : "--texels-per-unit",
-                     "a " + std::to_string(lm.width) + "x" + std::to_string(lm.height) + " lightmap with " +
+                     "a lightmap of " + std::to_string(lm.width) + "x" + std::to_string(lm.height) + " texels with " +
                          lightmapProductsName(o.products) +
                          (o.products & ~(kLightmapAo | kLightmapBent) ? " at order " + std::to_string(o.order) : ""),
                      lightmapPeakBytes(o, lm.width, lm.height));
