@@ -847,11 +847,12 @@ TEST_CASE("A header that claims more than its file can hold is refused from the 
   // 10 MiB; the first case, the one fuzzing found, took 2.35 GB and 3.5 s before the
   // Radiance header check), naming the file and the shortfall. Each message is the check's
   // own, so each case fails without its check.
-  // Under AddressSanitizer the executable alone takes ~0.4 s to start and exit and holds its
-  // shadow memory (test_jobs.cpp measures the same): there the sanitized build checks memory
-  // errors, the release build the time and the peak.
+  // Under AddressSanitizer the executable alone takes 0.4-0.5 s to start and exit (`prtbake
+  // --version`: 0.48-0.49 s, the refusals 0.50-0.57 s on a quiet machine, 0.68 s once in CI)
+  // and holds its shadow memory (test_jobs.cpp measures the same): there the sanitized build
+  // checks memory errors, the release build the time and the peak.
 #if defined(__SANITIZE_ADDRESS__)
-  constexpr double kSeconds = 0.1 + 0.5, kPeakMiB = 64 + 192;
+  constexpr double kSeconds = 0.1 + 1.0, kPeakMiB = 64 + 192;
 #else
   constexpr double kSeconds = 0.1, kPeakMiB = 64;
 #endif
