@@ -202,12 +202,13 @@ std::string pathOf(const py::handle& v) {
 }
 
 // A mesh argument: a prtbake.Mesh or a path.
-std::shared_ptr<const Mesh> meshArg(const py::object& v) {
+// A path is loaded with the albedo the product reads (MeshAlbedo: textures only where it is used).
+std::shared_ptr<const Mesh> meshArg(const py::object& v, MeshAlbedo albedo) {
   if (py::isinstance<Mesh>(v)) return v.cast<std::shared_ptr<Mesh>>();
   if (!isPath(v)) throw UsageError("mesh", "must be a prtbake.Mesh or the path of a .gltf, .glb or .obj file");
   const std::string path = pathOf(v);
   py::gil_scoped_release nogil;
-  return std::make_shared<const Mesh>(loadMesh(path));
+  return std::make_shared<const Mesh>(loadMesh(path, albedo));
 }
 
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
@@ -367,7 +368,7 @@ py::array rotateProduct(const py::object& coeffs, const py::object& euler, const
 py::object transportProduct(const py::object& meshObj, const py::kwargs& kw) {
   const json p = paramsOf("transport", kw, {{"npy", "-"}}, {"device", "progress"});
   const TransportOptions o = jobs::transportOptionsFrom(p);
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj, meshAlbedo(o));
   const std::string spec = deviceOf(kw);
   TransportResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
@@ -414,7 +415,7 @@ py::object lightmapProduct(const py::object& meshObj, const py::kwargs& kw) {
   bool envArray = false;
   const json p = envParams("lightmap", kw, {{"json", "-"}}, &env, &envArray);
   const LightmapOptions o = jobs::lightmapOptionsFrom(p);
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj, meshAlbedo(o));
   const std::string spec = deviceOf(kw);
   LightmapResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
@@ -457,7 +458,7 @@ py::object probesProduct(const py::object& meshObj, const py::kwargs& kw) {
   bool envArray = false;
   const json p = envParams("probes", kw, {{"npy", "-"}}, &env, &envArray);
   const ProbeOptions o = jobs::probeOptionsFrom(p);
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj, meshAlbedo(o));
   const std::string spec = deviceOf(kw);
   ProbeGridResult r;
   ProgressScope scope(pythonHook(progressOf(kw)));
@@ -498,7 +499,7 @@ py::object glossyProduct(const py::object& meshObj, const py::kwargs& kw) {
   const CpcaOptions co = jobs::cpcaOptionsFrom(p);
   const bool brdf = p["brdf"] != "none";
   checkGlossyOptions(o);
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj, meshAlbedo(o));
   const std::string spec = deviceOf(kw);
   GlossyResult r;
   CpcaResult c;
@@ -773,7 +774,7 @@ py::array previewMesh(const py::object& meshObj, const py::object& transport, co
                       std::pair<int, int> size, const py::object& view, double rotateLight, double exposure,
                       const py::object& outObj, const std::string& spec) {
   const std::string out = outputPath(outObj, "out", {meshObj});
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj, MeshAlbedo::Textures);
   MeshPreviewOptions o = previewView(size, view);
   o.lightRotationDeg = rotateLight;
   const FloatArray t = FloatArray::ensure(py::hasattr(transport, "coeffs") ? py::object(transport.attr("coeffs"))
@@ -842,7 +843,7 @@ LightmapResult lightmapArg(const py::object& v) {
 py::array previewLightmap(const py::object& meshObj, const py::object& lightmap, std::pair<int, int> size,
                           const py::object& view, double exposure, const py::object& outObj, const std::string& spec) {
   const std::string out = outputPath(outObj, "out", {meshObj, lightmap});
-  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj);
+  const std::shared_ptr<const Mesh> mesh = meshArg(meshObj, MeshAlbedo::Textures);
   MeshPreviewOptions o = previewView(size, view);
   const LightmapResult lm = lightmapArg(lightmap);
   LinearImage img;
@@ -959,7 +960,7 @@ PYBIND11_MODULE(_prtbake, m) {
             if (!isPath(file)) throw UsageError("path", "must be a path");
             const std::string path = pathOf(file);
             py::gil_scoped_release nogil;
-            return std::make_shared<Mesh>(loadMesh(path));
+            return std::make_shared<Mesh>(loadMesh(path, MeshAlbedo::Textures));
           },
           py::arg("path"))
       .def_property_readonly("positions", [](py::object self) { return meshView(self, self.cast<Mesh&>().positions); })

@@ -98,7 +98,7 @@ int runGlossyTransport(const CommandLine& cl) {
   const CpcaOptions co = jobs::cpcaOptionsFrom(p);
   checkGlossyOptions(o);  // orders and counts before anything is read
 
-  const Mesh mesh = loadMesh(input);
+  const Mesh mesh = loadMesh(input, meshAlbedo(o));
   const size_t nv = mesh.vertexCount();
   const int channels = glossyChannels(mesh, o);
   const double bytes = glossyMatrixBytes(nv, channels, o.orderOut, o.orderIn);
@@ -172,7 +172,7 @@ int previewGlossyMesh(const CommandLine& cl, const std::string& input, const std
   ToneMap tm;
   tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
   const std::string lobeText = cl.get("lobe", "phong:16");
-  const Mesh mesh = loadMesh(input);
+  const Mesh mesh = loadMesh(input, MeshAlbedo::Textures);  // shaded with its albedo
   GlossyMatrices g;
   CpcaResult c;
   const bool cpca = cl.has("cpca");

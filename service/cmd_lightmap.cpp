@@ -22,7 +22,7 @@ int runLightmap(const CommandLine& cl) {
   // bent also in tangent space where the mesh has tangents.
   const unsigned products = parseLightmapProducts(cl.has("products") ? cl.get("products") : "ao");
   auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
-  const Mesh mesh = loadMesh(input);
+  Mesh mesh = loadMesh(input);
   nlohmann::json outputs = {{"json", dir + "/lightmap.json"}};
   for (const std::string name : {"ao", "bent", "bent_tangent", "irradiance", "transport", "sh"}) {
     if (!(products & parseLightmapProducts(name.substr(0, name.find('_'))))) continue;
@@ -36,6 +36,7 @@ int runLightmap(const CommandLine& cl) {
   if (cl.has("gltf")) outputs["gltf"] = cl.get("gltf");
   const nlohmann::json p = productParams(cl, "lightmap", outputs);
   const LightmapOptions o = jobs::lightmapOptionsFrom(p);
+  if (meshAlbedo(o) == MeshAlbedo::Textures) mesh = loadMesh(input, MeshAlbedo::Textures);  // for the bounces
 
   const ShCoeffs env = jobs::probeEnvironment(p, [&]() -> Runtime& { return *device.get(); }, nullptr);
   Runtime& rt = jobs::processRuntime(cl.device());

@@ -158,7 +158,7 @@ int previewMesh(const CommandLine& cl, const std::string& input, const std::stri
   ToneMap tm;
   tm.exposureStops = cl.getDouble("exposure", 0.0, -40.0, 40.0);
   // Everything is read and checked before the device starts.
-  const Mesh mesh = loadMesh(input);
+  const Mesh mesh = loadMesh(input, MeshAlbedo::Textures);  // shaded with its albedo
   const TransportCoeffs t =
       transportPath.empty() ? readTransportGltf(mesh) : readTransportNpy(transportPath, mesh.vertexCount());
   const ShCoeffs radiance = readRadianceJson(envPath);

@@ -23,7 +23,7 @@ int runProbes(const CommandLine& cl) {
   const ProbeOptions o = jobs::probeOptionsFrom(p);
 
   auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
-  const Mesh mesh = loadMesh(input);
+  const Mesh mesh = loadMesh(input, meshAlbedo(o));
   const ShCoeffs env = jobs::probeEnvironment(p, [&]() -> Runtime& { return *device.get(); }, nullptr);
   Runtime& rt = jobs::processRuntime(cl.device());
   const ProbeGridLayout layout = probeGridLayout(mesh, o);

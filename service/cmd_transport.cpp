@@ -38,7 +38,7 @@ int runTransport(const CommandLine& cl) {
 
   // The OpenCL device starts while the mesh loads.
   auto device = std::async(std::launch::async, [&cl]() -> Runtime* { return &jobs::processRuntime(cl.device()); });
-  Mesh mesh = loadMesh(input);
+  Mesh mesh = loadMesh(input, meshAlbedo(o));
   status(cl, "transport: " + input + ": " + std::to_string(mesh.vertexCount()) + " vertices, " +
                  std::to_string(mesh.triangleCount()) + " triangles, " + transportModeName(o.mode) + ", order " +
                  std::to_string(o.order) + ", " +

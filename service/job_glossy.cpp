@@ -129,7 +129,7 @@ ExecResult runGlossy(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const GlossyOptions o = glossyOptionsFrom(p);
   checkGlossyOptions(o);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(o));
   const bool cpca = ctx.wants("cpca");
   const double bytes = glossyMatrixBytes(mesh.vertexCount(), glossyChannels(mesh, o), o.orderOut, o.orderIn);
   if (cpca && bytes > double(inputMemoryLimit()))
@@ -150,7 +150,7 @@ ExecResult runGlossyPart(const Job& job, ExecContext& ctx) {
   const json& shard = job.params.at("shard");
   const int index = shard.at("index").get<int>(), count = shard.at("count").get<int>();
   GlossyOptions o = glossyOptionsFrom(job.params);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(o));
   const auto [first, n] = vertexRange(mesh.vertexCount(), index, count);
   o.firstVertex = first;
   o.vertexCount = n;

@@ -76,7 +76,7 @@ namespace {
 ExecResult runLightmap(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const LightmapOptions o = lightmapOptionsFrom(p);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(o));
   for (const auto& [kind, path] : ctx.outputPaths)
     if (kind.rfind("bent_tangent", 0) == 0 && mesh.tangents.empty())
       throw InputError(job.input, "has no tangents for " + kind + ": " +
@@ -97,7 +97,7 @@ ExecResult runLightmapPart(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const int index = p.at("shard").at("index").get<int>(), count = p.at("shard").at("count").get<int>();
   LightmapOptions o = lightmapOptionsFrom(p);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(o));
   std::vector<std::string> read = mesh.inputFiles;
   const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
   const LightmapSamples samples = lightmapSamples(mesh, o);

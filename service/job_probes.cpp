@@ -106,7 +106,7 @@ std::string envPathOf(const json& p) { return p["env"].is_null() ? "" : p["env"]
 ExecResult runProbes(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const ProbeOptions o = probeOptionsFrom(p);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(o));
   std::vector<std::string> read = mesh.inputFiles;
   const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
   const ProbeGridResult g = computeProbeGrid(ctx.runtime(), mesh, env, o);
@@ -123,7 +123,7 @@ ExecResult runProbesPart(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const int index = p.at("shard").at("index").get<int>(), count = p.at("shard").at("count").get<int>();
   ProbeOptions o = probeOptionsFrom(p);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(o));
   std::vector<std::string> read = mesh.inputFiles;
   const ShCoeffs env = probeEnvironment(p, ctx.runtime, &read);
   const size_t total = probeGridLayout(mesh, o).count();

@@ -216,7 +216,8 @@ namespace {
 ExecResult runTransport(const Job& job, ExecContext& ctx) {
   const json& p = job.params;
   const TransportOptions options = transportOptionsFrom(p);
-  const Mesh mesh = loadMesh(job.input);
+  // The preview shades the mesh with its albedo, as `prtbake preview mesh` does.
+  const Mesh mesh = loadMesh(job.input, ctx.wants("png") ? MeshAlbedo::Textures : meshAlbedo(options));
   // The preview's environment is read before the transport runs (a bad file fails fast).
   std::vector<std::string> previewFiles;
   ShCoeffs previewRadiance;

@@ -29,7 +29,7 @@ ExecResult runTransportPart(const Job& job, ExecContext& ctx) {
   const json& shard = job.params.at("shard");
   const int index = shard.at("index").get<int>(), count = shard.at("count").get<int>();
   TransportOptions options = transportOptionsFrom(job.params);
-  const Mesh mesh = loadMesh(job.input);
+  const Mesh mesh = loadMesh(job.input, meshAlbedo(options));
   const auto [first, n] = vertexRange(mesh.vertexCount(), index, count);
   options.firstVertex = first;
   options.vertexCount = n;

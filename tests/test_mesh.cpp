@@ -2,6 +2,7 @@
 // transforms, missing normals, COLOR_0), OBJ (mary.obj), and bad inputs.
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -13,7 +14,10 @@
 #include "prtbake/error.h"
 #include "prtbake/limits.h"
 #include "prtbake/mesh.h"
+#include "prtbake/transport.h"
 #include "test_common.h"
+
+#include <stb/stb_image_write.h>
 
 using namespace prtbake;
 namespace fs = std::filesystem;
@@ -92,7 +96,180 @@ std::string makeTestGltf(const std::string& dir) {
   writeText(path, json);
   return path;
 }
+// An 8-bit RGB PNG of w × h texels: rows [0, split) in sRGB codes `a`, the rest in `b`.
+std::string pngBytes(int w, int h, int split, std::array<uint8_t, 3> a, std::array<uint8_t, 3> b) {
+  std::vector<uint8_t> px(size_t(3 * w * h));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) px[size_t(3 * (y * w + x) + c)] = y < split ? a[size_t(c)] : b[size_t(c)];
+  std::string out;
+  stbi_write_png_to_func([](void* ctx, void* data, int n) { static_cast<std::string*>(ctx)->append((char*)data, size_t(n)); },
+                         &out, w, h, 3, px.data(), 3 * w);
+  return out;
+}
+
+double srgbLinear(int code) {
+  const double c = code / 255.0;
+  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+}
+
+// A .gltf of unit squares in z = 0 (corners 0 (0,0), 1 (1,0), 2 (0,1), 3 (1,1); triangles 0 1 3 and
+// 0 3 2), one primitive per entry of `prims` ("material index, uv accessor": accessor 1 maps the
+// square onto the image's top half, v in [0, 0.5]; accessor 2 onto the whole image), with the
+// given materials, textures, samplers and images (JSON arrays' contents).
+std::string makeTexturedGltf(const std::string& path, const std::vector<std::pair<int, int>>& prims,
+                             const std::string& materials, const std::string& textures, const std::string& images,
+                             const std::string& samplers = "", const std::string& secondNode = "") {
+  const std::vector<float> pos = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  const std::vector<float> uvTop = {0, 0, 1, 0, 0, 0.5f, 1, 0.5f}, uvAll = {0, 0, 1, 0, 0, 1, 1, 1};
+  const std::vector<uint16_t> tris = {0, 1, 3, 0, 3, 2};
+  std::string buf;
+  append(buf, pos);    // 0..48
+  append(buf, uvTop);  // 48..80
+  append(buf, uvAll);  // 80..112
+  append(buf, tris);   // 112..124
+  std::string primitives;
+  for (const auto& [material, uv] : prims)
+    primitives += std::string(primitives.empty() ? "" : ",") + R"({"attributes": {"POSITION": 0, "TEXCOORD_0": )" +
+                  std::to_string(uv) + R"(}, "indices": 3, "material": )" + std::to_string(material) + "}";
+  writeText(path, std::string(R"({"asset": {"version": "2.0"}, "scene": 0, )") +
+                       (secondNode.empty() ? R"("scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],)"
+                                           : R"("scenes": [{"nodes": [0, 1]}], "nodes": [{"mesh": 0}, )" + secondNode + "],") +
+                       R"(
+  "meshes": [{"primitives": [)" + primitives + R"(]}],
+  "materials": [)" + materials + R"(], "textures": [)" + textures + R"(], "images": [)" + images + "]" +
+                        (samplers.empty() ? "" : R"(, "samplers": [)" + samplers + "]") + R"(,
+  "buffers": [{"byteLength": 124, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                  {"buffer": 0, "byteOffset": 80, "byteLength": 32}, {"buffer": 0, "byteOffset": 112, "byteLength": 12}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+    {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+    {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}]})");
+  return path;
+}
 }  // namespace
+
+static void expectInputError(const std::string& path, const std::string& what, MeshAlbedo albedo = MeshAlbedo::Factors);
+
+// The albedo of a textured asset was its base colour factor alone: Duck.glb (factor 1, a yellow
+// texture) bounced light as a white surface. With MeshAlbedo::Textures each vertex takes the
+// texture's mean over its triangles, weighted by their areas.
+TEST_CASE("glTF loader: the base colour texture's mean around each vertex multiplies the albedo", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-texture");
+  // Top half A, bottom half B (sRGB codes), 64 × 64 texels.
+  const std::array<uint8_t, 3> codeA = {200, 100, 50}, codeB = {20, 60, 220};
+  const std::string image = R"({"uri": "data:image/png;base64,)" + base64(pngBytes(64, 64, 32, codeA, codeB)) + R"("})";
+  const std::string path = makeTexturedGltf(
+      dir + "/textured.gltf", {{0, 1}, {1, 1}, {2, 2}},
+      R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+         {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0, 0.5]}}}}},
+         {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 1, 1, 1], "baseColorTexture": {"index": 0}}})",
+      R"({"source": 0, "sampler": 0})", image, R"({"wrapT": 33071})");
+  std::array<double, 3> a{}, b{};
+  for (int c = 0; c < 3; ++c) a[size_t(c)] = srgbLinear(codeA[size_t(c)]), b[size_t(c)] = srgbLinear(codeB[size_t(c)]);
+  // Two effects blur the colour edge at v = 0.5 (y = 32 texels): bilinear sampling blends the rows
+  // on either side within half a texel (at most 0.5 × 0.25 / 32 = 0.4 % of the step over a
+  // 32-texel-tall footprint), and the ~46 × 46 sub-triangle centroids that straddle the edge
+  // (about 1/46 = 2 % of them, half counted on each side). 2.5 % of the step holds both.
+  constexpr double kEdgeTol = 0.025;
+  auto expectMix = [&](const Mesh& m, uint32_t v, double weightA, std::array<double, 3> factor) {
+    for (int c = 0; c < 3; ++c) {
+      INFO("vertex " << v << " channel " << c);
+      const double want = factor[size_t(c)] * (weightA * a[size_t(c)] + (1 - weightA) * b[size_t(c)]);
+      CHECK(std::abs(m.albedo[3 * v + size_t(c)] - want) <= kEdgeTol * std::abs(a[size_t(c)] - b[size_t(c)]) + 1e-6);
+    }
+  };
+  const Mesh m = loadMesh(path, MeshAlbedo::Textures);
+  REQUIRE(m.vertexCount() == 12);
+  for (uint32_t v = 0; v < 4; ++v) expectMix(m, v, 1.0, {1, 1, 1});      // the top half: A
+  for (uint32_t v = 4; v < 8; ++v) expectMix(m, v, 0.0, {1, 1, 1});      // moved down by the transform: B
+  // The whole image, factor (0.5, 1, 1): triangle 0 1 3 is wide where v is small (3/4 of it in
+  // the top half), triangle 0 3 2 the reverse; corners 0 and 3 share both (equal areas).
+  expectMix(m, 8, 0.5, {0.5, 1, 1});
+  expectMix(m, 9, 0.75, {0.5, 1, 1});
+  expectMix(m, 10, 0.25, {0.5, 1, 1});
+  expectMix(m, 11, 0.5, {0.5, 1, 1});
+  // Without textures (the default, for the bakes that do not use the albedo): the factors alone.
+  const Mesh f = loadMesh(path);
+  CHECK(f.albedo[0] == 1.0f);
+  CHECK(f.albedo[3 * 8] == 0.5f);
+  CHECK(f.albedo[3 * 8 + 1] == 1.0f);
+
+  // A texture prtbake cannot decode, or one that reads a set the primitive lacks, is refused
+  // with the file and the reason; without textures the file loads.
+  writeText(dir + "/tex.ktx2", "\xabKTX 20\xbb\r\n\x1a\n0000");
+  const std::string ktx2 = makeTexturedGltf(dir + "/ktx2.gltf", {{0, 1}}, R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})",
+                                            R"({"source": 0})", R"({"uri": "tex.ktx2", "mimeType": "image/ktx2"})");
+  CHECK_NOTHROW(loadMesh(ktx2));
+  expectInputError(ktx2, "image 0 is not a PNG or JPEG image (image/ktx2)", MeshAlbedo::Textures);
+  const std::string dataKtx2 = makeTexturedGltf(dir + "/ktx2-uri.gltf", {{0, 1}},
+                                                R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})", R"({"source": 0})",
+                                                R"({"uri": "data:image/ktx2;base64,)" + base64("\xabKTX 20\xbb") + R"("})");
+  expectInputError(dataKtx2, "image 0 could not be read", MeshAlbedo::Textures);
+  const std::string missing = makeTexturedGltf(dir + "/missing.gltf", {{0, 1}},
+                                               R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})", R"({"source": 0})",
+                                               R"({"uri": "nowhere.png"})");
+  expectInputError(missing, "image 0 could not be read", MeshAlbedo::Textures);
+  writeText(dir + "/broken.png", pngBytes(8, 8, 4, {1, 2, 3}, {4, 5, 6}).substr(0, 40));
+  const std::string broken = makeTexturedGltf(dir + "/broken.gltf", {{0, 1}},
+                                              R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})", R"({"source": 0})",
+                                              R"({"uri": "broken.png"})");
+  expectInputError(broken, "image 0: cannot decode image", MeshAlbedo::Textures);
+  const std::string set1 = makeTexturedGltf(dir + "/set1.gltf", {{0, 1}},
+                                            R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 1}}})",
+                                            R"({"source": 0})", image);
+  expectInputError(set1, "reads TEXCOORD_1", MeshAlbedo::Textures);
+  const std::string noSource = makeTexturedGltf(dir + "/nosource.gltf", {{0, 1}},
+                                                R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})",
+                                                R"({"extensions": {"KHR_texture_basisu": {"source": 0}}})", image);
+  expectInputError(noSource, "has no PNG or JPEG image", MeshAlbedo::Textures);
+  fs::remove_all(dir);
+}
+
+// The bakes that use the albedo read the textures: an interreflected corner (a floor and a wall
+// that light each other) textured in one colour, in an image file beside the .gltf, gives the
+// transport of the same corner whose base colour factor is that colour, linear.
+TEST_CASE("CLI transport: an interreflected bake reads the base colour texture", "[mesh][transport][cli]") {
+  const std::string dir = test::tempDir("mesh-texture-cli");
+  const std::array<uint8_t, 3> code = {180, 120, 60};
+  writeText(dir + "/tex.png", pngBytes(8, 8, 8, code, code));
+  const std::string wall = R"({"mesh": 0, "rotation": [0, 0.70710678, 0, 0.70710678], "translation": [0, 0, 1]})";
+  const std::string textured = makeTexturedGltf(dir + "/textured.gltf", {{0, 2}},
+                                                R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})",
+                                                R"({"source": 0})", R"({"uri": "tex.png"})", "", wall);
+  char factor[160];
+  std::snprintf(factor, sizeof factor, R"({"pbrMetallicRoughness": {"baseColorFactor": [%.17g, %.17g, %.17g, 1]}})",
+                srgbLinear(code[0]), srgbLinear(code[1]), srgbLinear(code[2]));
+  const std::string plain = makeTexturedGltf(dir + "/plain.gltf", {{0, 2}}, factor, "", "", "", wall);
+  for (const std::string& f : {textured, plain}) {
+    const auto r = test::runCli("transport '" + f + "' -o '" + f + ".npy' --mode interreflected --bounces 2 --order 2 "
+                                "--samples 64 --quiet");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+  }
+  // The control: the textured corner as white (the albedo the factor alone gives) bounces more.
+  const auto white = test::runCli("transport '" + textured + "' -o '" + dir + "/white.npy' --mode interreflected "
+                                  "--bounces 2 --order 2 --samples 64 --albedo 1 --quiet");
+  REQUIRE(white.exitCode == 0);
+  const TransportCoeffs t = readTransportNpy(textured + ".npy"), p = readTransportNpy(plain + ".npy");
+  REQUIRE(t.channels == 3);
+  REQUIRE(t.coeffs.size() == p.coeffs.size());
+  // The same rays and the same albedo (the texture's one code value, decoded as the factor was
+  // computed, both rounded to float): equal up to float rounding in the bounce sums.
+  constexpr double kFloatTol = 1e-5;
+  const TransportCoeffs w = readTransportNpy(dir + "/white.npy");
+  REQUIRE(w.channels == 1);
+  double most = 0, whiteMost = 0;
+  for (size_t i = 0; i < t.coeffs.size(); ++i) {
+    most = std::max(most, double(std::abs(t.coeffs[i] - p.coeffs[i])));
+    whiteMost = std::max(whiteMost, double(std::abs(t.coeffs[i] - w.coeffs[i / 12 * 4 + i % 4])));  // grey: V x 4
+  }
+  CHECK(most <= kFloatTol);
+  CHECK(whiteMost > 100 * kFloatTol);
+  fs::remove_all(dir);
+}
 
 TEST_CASE("glTF loader: strips, fans, non-indexed, data URIs, transforms, normals, albedo", "[mesh]") {
   const std::string dir = test::tempDir("mesh-gltf");
@@ -343,9 +520,9 @@ TEST_CASE("glTF loader: every vertex attribute has POSITION's count, and strides
   }
 }
 
-static void expectInputError(const std::string& path, const std::string& what) {
+static void expectInputError(const std::string& path, const std::string& what, MeshAlbedo albedo) {
   try {
-    loadMesh(path);
+    loadMesh(path, albedo);
     FAIL("no error for " << path);
   } catch (const InputError& e) {
     INFO(e.what());

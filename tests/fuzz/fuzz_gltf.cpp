@@ -2,7 +2,7 @@
 // (.gltf with data URIs or external buffers, .glb), then the _PRT_* attributes read
 // back as `prtbake preview mesh --transport COPY.glb` does.
 // Input: byte 0 bit 0 names the file .glb (else .gltf; the loader tells GLB by its
-// magic either way); then two parts: the file, and the external buffer "b.bin" that
+// magic either way), bit 1 reads the base colour textures into the albedo; then two parts: the file, and the external buffer "b.bin" that
 // a .gltf may name.
 #include <cmath>
 
@@ -19,7 +19,8 @@ PRTBAKE_FUZZ_TARGET(gltf) {
   fuzz::writeScratch("b.bin", parts[1]);
   const std::string path = fuzz::writeScratch((data[0] & 1) ? "in.glb" : "in.gltf", parts[0]);
   Mesh mesh;
-  if (!fuzz::expectCleanFailure(path, [&] { mesh = loadMesh(path); })) return 0;
+  const MeshAlbedo albedo = (data[0] & 2) ? MeshAlbedo::Textures : MeshAlbedo::Factors;
+  if (!fuzz::expectCleanFailure(path, [&] { mesh = loadMesh(path, albedo); })) return 0;
   const size_t nv = mesh.vertexCount();
   if (mesh.positions.size() != 3 * nv || mesh.normals.size() != 3 * nv || mesh.albedo.size() != 3 * nv ||
       mesh.indices.empty() || mesh.indices.size() % 3)
@@ -28,6 +29,8 @@ PRTBAKE_FUZZ_TARGET(gltf) {
     if (i >= nv) fuzz::fail("a loaded mesh has an index out of range");
   for (float v : mesh.positions)
     if (!std::isfinite(v)) fuzz::fail("a loaded mesh has a non-finite position");
+  for (float v : mesh.albedo)
+    if (!std::isfinite(v)) fuzz::fail("a loaded mesh has a non-finite albedo");
   TransportCoeffs t;
   if (fuzz::expectCleanFailure(path, [&] { t = readTransportGltf(mesh); }) &&
       t.coeffs.size() != t.vertexCount * size_t(t.channels) * size_t(t.order) * size_t(t.order))

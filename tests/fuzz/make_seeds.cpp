@@ -184,9 +184,31 @@ Bytes base64(const Bytes& in) {
   return out;
 }
 
+// The triangle with a base colour texture (a 4 x 4 PNG in a data URI, mirrored, moved by
+// KHR_texture_transform) on TEXCOORD_0 (the positions' x, y), for the albedo's texture pass.
+std::string texturedGltf(const std::string& uri) {
+  std::vector<uint8_t> px(4 * 4 * 3);
+  for (size_t i = 0; i < px.size(); ++i) px[i] = uint8_t(37 * i);
+  Bytes png;
+  stbi_write_png_to_func([](void* ctx, void* data, int n) { static_cast<Bytes*>(ctx)->append(static_cast<char*>(data), size_t(n)); },
+                         &png, 4, 4, 3, px.data(), 12);
+  std::string g = triangleGltf(uri);
+  const auto at = [&](const std::string& from) { return g.find(from); };
+  g.replace(at(R"("COLOR_0": 2})"), 13, R"("COLOR_0": 2, "TEXCOORD_0": 4})");
+  g.replace(at(R"("baseColorFactor": [0.8, 0.8, 0.8, 1]})"), 38,
+            R"("baseColorFactor": [0.8, 0.8, 0.8, 1], "baseColorTexture": {"index": 0, "extensions": )"
+            R"({"KHR_texture_transform": {"offset": [0.5, 0], "rotation": 0.3, "scale": [2, 3]}}}})");
+  g.replace(at(R"("type": "SCALAR"}])"), 18,
+            R"("type": "SCALAR"}, {"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 3, "type": "VEC2"}],
+"textures": [{"source": 0, "sampler": 0}], "samplers": [{"wrapS": 33648, "wrapT": 33071}],
+"images": [{"uri": "data:image/png;base64,)" + base64(png) + R"("}])");
+  return g;
+}
+
 void meshes() {
   const Bytes bin = triangleBin();
   put("gltf", "external_buffer", Bytes(1, '\0') + parts({triangleGltf("b.bin"), bin}));
+  put("gltf", "base_color_texture", Bytes(1, '\2') + parts({texturedGltf("b.bin"), bin}));
   put("gltf", "data_uri", Bytes(1, '\0') + parts({triangleGltf("data:application/octet-stream;base64," + base64(bin)), ""}));
   // A transport copy with _PRT_T* attributes, as `prtbake transport --gltf copy.glb` writes it.
   const std::string src = tmp() + "/tri.gltf";

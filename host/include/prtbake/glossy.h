@@ -78,6 +78,11 @@ struct GlossyOptions {
   int rayLanes = -1;
 };
 
+// As transport's: the base colour textures too when interreflected without an albedo override.
+inline MeshAlbedo meshAlbedo(const GlossyOptions& o) {
+  return o.mode == TransportMode::Interreflected && !o.albedoOverride ? MeshAlbedo::Textures : MeshAlbedo::Factors;
+}
+
 struct GlossyStats {
   int orderOut = 0, orderIn = 0;
   int channels = 1;            // 3 when interreflected with a coloured albedo

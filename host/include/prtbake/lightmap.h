@@ -96,6 +96,11 @@ struct LightmapOptions {
   std::optional<std::pair<size_t, size_t>> sampleRange;
 };
 
+// The base colour textures too where bounces light the surfaces (no albedo override).
+inline MeshAlbedo meshAlbedo(const LightmapOptions& o) {
+  return o.bounces > 0 && !o.albedoOverride ? MeshAlbedo::Textures : MeshAlbedo::Factors;
+}
+
 // Texel states (LightmapResult::state).
 enum class TexelState : uint8_t { Empty = 0, Baked = 1, Moved = 2, Buried = 3, Dilated = 4 };
 

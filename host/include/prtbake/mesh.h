@@ -53,16 +53,25 @@ struct Mesh {
   std::string inputSha256(const std::string& path) const;
 };
 
+// Where a glTF mesh's albedo comes from: its materials' baseColorFactor × COLOR_0, or that times
+// the mean of the material's base colour texture around each vertex (decoded only for the bakes
+// that use the albedo: interreflection, bounces, previews).
+enum class MeshAlbedo { Factors, Textures };
+
 // Loads a .gltf/.glb (tinygltf) or .obj (tinyobjloader) by its extension, fills
 // missing normals and validates. Throws InputError(path, what) for missing,
 // malformed, empty or non-finite input.
-Mesh loadMesh(const std::string& path);
+Mesh loadMesh(const std::string& path, MeshAlbedo albedo = MeshAlbedo::Factors);
 
 // glTF 2.0: every triangle primitive (triangles, strips, fans; indexed or not) of the
 // default scene (or of every root node when there is no scene), node transforms
 // applied; NORMAL, else area- and angle-weighted normals; albedo = baseColorFactor ×
-// COLOR_0 (RGB). Points and lines are ignored.
-Mesh loadGltf(const std::string& path);
+// COLOR_0 (RGB), and with MeshAlbedo::Textures times the base colour texture's mean over the
+// triangles around the vertex (weighted by their areas; each triangle's mean from bilinear
+// samples, about one a texel of its footprint and at most 64², with the sampler's wrap modes and
+// KHR_texture_transform; sRGB decoded). Such a texture must be PNG or JPEG. Points and lines are
+// ignored.
+Mesh loadGltf(const std::string& path, MeshAlbedo albedo = MeshAlbedo::Factors);
 // The files that the .gltf or .glb (by its extension, any case) at `path` names by URI: its
 // buffers' and images' URIs (data: URIs left out), decoded as the loader decodes them ('+' and
 // %XX). Resolving one against the file's directory is the caller's. Empty for another

@@ -87,6 +87,11 @@ struct ProbeOptions {
   int rayLanes = -1;
 };
 
+// The base colour textures too where the surfaces are lit (bounces ≥ 1, no albedo override).
+inline MeshAlbedo meshAlbedo(const ProbeOptions& o) {
+  return o.bounces > 0 && !o.albedoOverride ? MeshAlbedo::Textures : MeshAlbedo::Factors;
+}
+
 struct ProbeGridResult {
   ProbeGridLayout layout;
   int order = 0;

@@ -91,6 +91,12 @@ struct TransportOptions {
   double maxDistance = 0;
 };
 
+// The albedo a bake with these options reads from a mesh file (loadMesh): the base colour
+// textures too when interreflected without an albedo override.
+inline MeshAlbedo meshAlbedo(const TransportOptions& o) {
+  return o.mode == TransportMode::Interreflected && !o.albedoOverride ? MeshAlbedo::Textures : MeshAlbedo::Factors;
+}
+
 // Orders accepted by the transport product.
 constexpr int kMaxTransportOrder = 8;
 

@@ -55,11 +55,11 @@ std::vector<std::string> gltfExternalUris(const std::string& path) {
   return uris;
 }
 
-Mesh loadMesh(const std::string& path) {
+Mesh loadMesh(const std::string& path, MeshAlbedo albedo) {
   const std::string ext = lowerExtension(path);
   Mesh mesh;
   if (ext == "gltf" || ext == "glb")
-    mesh = loadGltf(path);
+    mesh = loadGltf(path, albedo);
   else if (ext == "obj")
     mesh = loadObj(path);
   else

@@ -16,16 +16,25 @@
 namespace prtbake {
 namespace detail {
 namespace {
-bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
-               void*) {
-  return true;  // images are not needed for transport and are passed through untouched
+// Images are not decoded here: the encoded bytes of a file or data URI are kept where the caller
+// asks for them (`user` is then the vector of images), and passed through untouched. (A buffer
+// view's bytes are read after the load, with its bounds checked: tinygltf does not check them.)
+bool keepImageBytes(tinygltf::Image* image, const int index, std::string*, std::string*, int, int,
+                    const unsigned char* bytes, int size, void* user) {
+  if (user && index >= 0 && size > 0 && image->bufferView < 0) {
+    auto& images = *static_cast<std::vector<std::vector<unsigned char>>*>(user);
+    if (images.size() <= size_t(index)) images.resize(size_t(index) + 1);
+    images[size_t(index)].assign(bytes, bytes + size);
+  }
+  return true;
 }
 }  // namespace
 
-void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<std::string>* files) {
+void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<std::string>* files,
+                   std::vector<std::vector<unsigned char>>* images) {
   const std::string bytes = readFile(path);
   tinygltf::TinyGLTF loader;
-  loader.SetImageLoader(skipImage, nullptr);
+  loader.SetImageLoader(keepImageBytes, images);
   std::string err, warn;
   const size_t slash = path.find_last_of('/');
   const std::string baseDir = slash == std::string::npos ? "." : path.substr(0, slash);
@@ -83,6 +92,31 @@ void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<
                                  ", which this loader does not read (store the geometry without it)");
   }
   if (files) *files = std::move(external);
+  if (images) {
+    images->resize(model.images.size());
+    for (size_t i = 0; i < model.images.size(); ++i) {
+      const int v = model.images[i].bufferView;
+      if (v < 0) continue;
+      const auto& view = model.bufferViews[size_t(v)];  // tinygltf checked the indices
+      const auto& data = model.buffers[size_t(view.buffer)].data;
+      if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
+        throw InputError(path, "image " + std::to_string(i) + "'s buffer view " + std::to_string(v) +
+                                   " lies outside its buffer");
+      (*images)[i].assign(data.begin() + ptrdiff_t(view.byteOffset),
+                          data.begin() + ptrdiff_t(view.byteOffset + view.byteLength));
+    }
+  }
+}
+
+std::string imageMediaType(std::string_view bytes) {
+  auto starts = [&](size_t at, std::string_view magic) {
+    return bytes.size() >= at + magic.size() && bytes.compare(at, magic.size(), magic) == 0;
+  };
+  return starts(0, "\x89PNG\r\n\x1a\n")          ? "image/png"
+         : starts(0, "\xff\xd8\xff")                ? "image/jpeg"
+         : starts(0, "\xabKTX 20\xbb")               ? "image/ktx2"
+         : starts(0, "RIFF") && starts(8, "WEBP") ? "image/webp"
+                                                  : "";
 }
 
 std::string decodeGltfUri(const std::string& uri) {
@@ -272,14 +306,8 @@ std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path, const
     if (image.uri.empty() || image.uri.rfind("data:", 0) == 0) continue;
     const std::string file = sourceDir + "/" + decodeGltfUri(image.uri);
     const std::string bytes = readFile(file);
-    auto starts = [&](size_t at, std::string_view magic) {
-      return bytes.size() >= at + magic.size() && bytes.compare(at, magic.size(), magic) == 0;
-    };
-    const std::string mime = starts(0, "\x89PNG\r\n\x1a\n")          ? "image/png"
-                             : starts(0, "\xff\xd8\xff")                ? "image/jpeg"
-                             : starts(0, "\xabKTX 20\xbb")               ? "image/ktx2"
-                             : starts(0, "RIFF") && starts(8, "WEBP") ? "image/webp"
-                                                                      : image.mimeType;  // as the source declares it
+    std::string mime = imageMediaType(bytes);
+    if (mime.empty()) mime = image.mimeType;  // as the source declares it
     if (mime.empty())
       throw InputError(file, "not a PNG, JPEG, KTX2 or WebP image, and the glTF gives no mimeType: cannot embed it in "
                              "the glTF copy " + path);

@@ -5,14 +5,18 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace prtbake::detail {
 
 // Loads .gltf (with external or data-URI buffers) or .glb (by magic, not by
 // extension) without decoding images. Throws InputError(path, ...) on failure. `files`, when
-// given, receives the external files it read (buffers, then images), as the loader named them.
-void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<std::string>* files = nullptr);
+// given, receives the external files it read (buffers, then images), as the loader named them;
+// `images`, when given, image i's encoded bytes at index i (whether from a file, a data URI or a
+// buffer view; empty where it has none).
+void loadGltfModel(const std::string& path, tinygltf::Model& model, std::vector<std::string>* files = nullptr,
+                   std::vector<std::vector<unsigned char>>* images = nullptr);
 
 // Reads `comps` components per element of accessor `index` as doubles (normalised
 // integers mapped to [0, 1] or [−1, 1]). Every number the file gives is checked
@@ -33,6 +37,10 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int co
 // their bytes, another kind by the image's mimeType; InputError without one). Throws
 // OutputError(path, ...) when tinygltf cannot write it.
 std::string gltfCopyBytes(tinygltf::Model& model, const std::string& path, const std::string& sourcePath);
+
+// The media type of an image's bytes by their magic number: "image/png", "image/jpeg",
+// "image/ktx2", "image/webp", or "" for another.
+std::string imageMediaType(std::string_view bytes);
 
 // A URI as tinygltf decodes it before opening the file: '+' a space, %XX a byte.
 std::string decodeGltfUri(const std::string& uri);

@@ -262,10 +262,11 @@ bool isOpenExr(const std::string& path) {
 
 double srgbToLinear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
 
-Image readImage(const std::string& path, LdrDecode ldrDecode, bool compact) {
+namespace {
+// Decoder failures as InputErrors naming `path`.
+Image guardedRead(const std::string& path, const std::function<Image()>& read) {
   try {
-    if (isOpenExr(path)) return readOpenExr(path, compact);
-    return readWithStb(path, readWholeFile(path), ldrDecode, compact);
+    return read();
   } catch (const Error&) {
     throw;
   } catch (const std::bad_alloc&) {
@@ -274,6 +275,19 @@ Image readImage(const std::string& path, LdrDecode ldrDecode, bool compact) {
     // OpenEXR (Iex) reports truncated or malformed files with std::exception subclasses.
     throw InputError(path, std::string("cannot read OpenEXR image: ") + e.what());
   }
+}
+
+}  // namespace
+
+Image readImage(const std::string& path, LdrDecode ldrDecode, bool compact) {
+  return guardedRead(path, [&] {
+    return isOpenExr(path) ? readOpenExr(path, compact) : readWithStb(path, readWholeFile(path), ldrDecode, compact);
+  });
+}
+
+Image readImageBytes(const std::string& label, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode,
+                     bool compact) {
+  return guardedRead(label, [&] { return readWithStb(label, bytes, ldrDecode, compact); });
 }
 
 }  // namespace prtbake::detail

@@ -73,6 +73,11 @@ class ExrRowReader {
   bool hasRgb_ = false, readable_ = false, half_ = false;
 };
 
+// An 8- or 16-bit PNG or JPEG image held in memory (an image inside a glTF file), decoded as
+// readImage decodes one; `label` names it in errors ("scene.glb: image 2").
+Image readImageBytes(const std::string& label, const std::vector<unsigned char>& bytes, LdrDecode ldrDecode,
+                     bool compact);
+
 // Opens the file (so every format fails the same way when it cannot be opened) and tells
 // whether it starts with the OpenEXR magic number 76 2f 31 01.
 bool isOpenExr(const std::string& path);
