@@ -575,6 +575,74 @@ f 5/5/2 7/7/2 8/8/2
 """
 
 
+def write_corner_gltf(path, material, texture_png=None):
+    """A floor (y = 0) and a wall (x = 0) meeting at a corner, lighting each other: one primitive, UV set 0
+    for a base colour texture, UV set 1 for a lightmap (the two quads' charts apart)."""
+    import base64
+    pos = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1], [0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]], np.float32)
+    nrm = np.array([[0, 1, 0]] * 4 + [[1, 0, 0]] * 4, np.float32)
+    uv0 = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] * 2, np.float32)
+    uv1 = np.array([[.05, .05], [.45, .05], [.45, .95], [.05, .95], [.55, .05], [.95, .05], [.95, .95], [.55, .95]], np.float32)
+    idx = np.array([0, 3, 2, 0, 2, 1, 4, 5, 6, 4, 6, 7], np.uint16)
+    blobs = [pos, nrm, uv0, uv1, idx]
+    buf, views, off = b"", [], 0
+    for a in blobs:
+        views.append({"buffer": 0, "byteOffset": off, "byteLength": a.nbytes})
+        buf += a.tobytes()
+        off += a.nbytes
+    acc = [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]},
+           {"bufferView": 1, "componentType": 5126, "count": 8, "type": "VEC3"},
+           {"bufferView": 2, "componentType": 5126, "count": 8, "type": "VEC2"},
+           {"bufferView": 3, "componentType": 5126, "count": 8, "type": "VEC2"},
+           {"bufferView": 4, "componentType": 5123, "count": 12, "type": "SCALAR"}]
+    g = {"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+         "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2, "TEXCOORD_1": 3},
+                                     "indices": 4, "material": 0}]}],
+         "materials": [material], "accessors": acc, "bufferViews": views,
+         "buffers": [{"byteLength": len(buf), "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode()}]}
+    if texture_png is not None:
+        g["textures"] = [{"source": 0}]
+        g["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(texture_png).decode()}]
+    pathlib.Path(path).write_text(json.dumps(g))
+    return path
+
+
+def uniform_png(rgb, size=8):
+    """An 8-bit RGB PNG of one colour (sRGB codes)."""
+    import zlib
+    row = b"\0" + bytes(rgb) * size
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(row * size)) + chunk(b"IEND", b""))
+
+
+def test_the_bakes_that_use_the_albedo_read_the_base_colour_texture(tmp_path):
+    # A corner textured in one colour bakes as the same corner whose base colour factor is that
+    # colour, linear: the same rays, the same float albedo (equal to float rounding in the bounce
+    # sums, 1e-5); as white (the factor alone, the control) it differs.
+    code = (180, 120, 60)
+    linear = [c / 255 / 12.92 if c / 255 <= 0.04045 else ((c / 255 + 0.055) / 1.055) ** 2.4 for c in code]
+    textured = write_corner_gltf(tmp_path / "textured.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                 uniform_png(code))
+    plain = write_corner_gltf(tmp_path / "plain.gltf", {"pbrMetallicRoughness": {"baseColorFactor": linear + [1]}})
+    assert np.allclose(prtbake.Mesh.load(textured).albedo, np.array([linear] * 8), rtol=0, atol=1e-7)
+    bakes = {
+        "transport": lambda m, **k: prtbake.transport(m, mode="interreflected", bounces=2, order=2, samples=64, **k).coeffs,
+        "probes": lambda m, **k: prtbake.probes(m, resolution=[2, 2, 2], samples=64, transport_samples=64, bounces=2,
+                                                bounds=[0.2, 0.2, 0.2, 0.8, 0.8, 0.8], **k).coeffs,
+        "lightmap": lambda m, **k: prtbake.lightmap(m, uv=1, size=16, samples=64, products="irradiance", bounces=1,
+                                                    **k).irradiance,
+    }
+    for name, bake in bakes.items():
+        t, p, white = bake(textured), bake(plain), bake(textured, albedo=1.0)
+        assert t.shape == p.shape, name  # coloured, as the factor's
+        assert np.abs(t - p).max() <= 1e-5, name
+        if white.shape != t.shape:  # grey transport (V, n²) beside coloured (V, 3, n²)
+            white = white[:, None, :]
+        assert np.abs(t - white).max() > 1e-3, name
+
+
 def test_lightmap_matches_the_command(tmp_path):
     # A floor with a square roof above its middle; the roof's chart apart from the floor's.
     obj = tmp_path / "floor.obj"
