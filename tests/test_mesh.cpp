@@ -2,6 +2,7 @@
 // transforms, missing normals, COLOR_0), OBJ (mary.obj), and bad inputs.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -225,6 +226,97 @@ TEST_CASE("glTF loader: the base colour texture's mean around each vertex multip
                                                 R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})",
                                                 R"({"extensions": {"KHR_texture_basisu": {"source": 0}}})", image);
   expectInputError(noSource, "has no PNG or JPEG image", MeshAlbedo::Textures);
+  fs::remove_all(dir);
+}
+
+// An OBJ's albedo was 1 whatever its materials said. With MeshAlbedo::Textures each vertex takes the
+// area-weighted mean over its faces of their material's Kd (1 where none is given) times the mean of
+// its map_Kd, whose -o, -s act on OBJ's v-up coordinates.
+TEST_CASE("OBJ loader: the faces' .mtl Kd and map_Kd give the albedo", "[mesh]") {
+  const std::string dir = test::tempDir("mesh-obj-mtl");
+  const std::array<uint8_t, 3> code = {180, 120, 60}, codeA = {200, 100, 50}, codeB = {20, 60, 220};
+  writeText(dir + "/tex.png", pngBytes(8, 8, 8, code, code));
+  writeText(dir + "/ab.png", pngBytes(64, 64, 32, codeA, codeB));  // rows 0-31 (the top, OBJ's v > 0.5) A
+  writeText(dir + "/m.mtl", "newmtl red\nKd 0.8 0.1 0.1\n"
+                            "newmtl tex\nmap_Kd tex.png\n"
+                            "newmtl half\nKd 0.5 0.5 0.5\nmap_Kd tex.png\n"
+                            "newmtl shifted\nmap_Kd -o 0 0.5 0 ab.png\n");
+  // Five unit squares side by side in z = 0, their own vertices: red, tex, half, one split between
+  // red and tex along its diagonal (equal areas), and one over OBJ's v in [0, 0.5] moved up by -o.
+  std::string obj = "mtllib m.mtl\n";
+  for (int q = 0; q < 5; ++q) {
+    obj += "v " + std::to_string(2 * q) + " 0 0\nv " + std::to_string(2 * q + 1) + " 0 0\nv " + std::to_string(2 * q + 1) +
+           " 1 0\nv " + std::to_string(2 * q) + " 1 0\n";
+    obj += q == 4 ? "vt 0 0\nvt 1 0\nvt 1 0.5\nvt 0 0.5\n" : "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n";
+  }
+  auto face = [](int q, int a, int b, int c) {
+    auto corner = [&](int k) { return std::to_string(4 * q + k) + "/" + std::to_string(4 * q + k); };
+    return "f " + corner(a) + " " + corner(b) + " " + corner(c) + "\n";
+  };
+  obj += "usemtl red\n" + face(0, 1, 2, 3) + face(0, 1, 3, 4);
+  obj += "usemtl tex\n" + face(1, 1, 2, 3) + face(1, 1, 3, 4);
+  obj += "usemtl half\n" + face(2, 1, 2, 3) + face(2, 1, 3, 4);
+  obj += "usemtl red\n" + face(3, 1, 2, 3) + "usemtl tex\n" + face(3, 1, 3, 4);
+  obj += "usemtl shifted\n" + face(4, 1, 2, 3) + face(4, 1, 3, 4);
+  writeText(dir + "/m.obj", obj);
+  const Mesh m = loadMesh(dir + "/m.obj", MeshAlbedo::Textures);
+  REQUIRE(m.vertexCount() == 20);
+  const std::array<double, 3> red = {0.8, 0.1, 0.1};
+  std::array<double, 3> tex{}, a{}, b{};
+  for (size_t c = 0; c < 3; ++c) tex[c] = srgbLinear(code[c]), a[c] = srgbLinear(codeA[c]), b[c] = srgbLinear(codeB[c]);
+  // A uniform texture's mean is its one value (float rounding: 1e-6).
+  auto expect = [&](uint32_t v, std::array<double, 3> want, double tol) {
+    for (size_t c = 0; c < 3; ++c) {
+      INFO("vertex " << v << " channel " << c);
+      CHECK(std::abs(m.albedo[3 * v + c] - want[c]) <= tol);
+    }
+  };
+  for (uint32_t v = 0; v < 4; ++v) expect(v, red, 1e-6);
+  for (uint32_t v = 4; v < 8; ++v) expect(v, tex, 1e-6);
+  for (uint32_t v = 8; v < 12; ++v) expect(v, {0.5 * tex[0], 0.5 * tex[1], 0.5 * tex[2]}, 1e-6);
+  // The split square: corners 1 and 3 of both faces take the mean, 2 red's, 4 tex's.
+  const std::array<double, 3> mean = {(red[0] + tex[0]) / 2, (red[1] + tex[1]) / 2, (red[2] + tex[2]) / 2};
+  expect(12, mean, 1e-6);
+  expect(13, red, 1e-6);
+  expect(14, mean, 1e-6);
+  expect(15, tex, 1e-6);
+  // v in [0, 0.5] is the image's bottom half (B); moved up by 0.5 it reads the top (A), within the
+  // blur of the colour edge as in the glTF test (2.5 % of the step).
+  for (uint32_t v = 16; v < 20; ++v)
+    for (size_t c = 0; c < 3; ++c) {
+      INFO("vertex " << v << " channel " << c);
+      CHECK(std::abs(m.albedo[3 * v + c] - a[c]) <= 0.025 * std::abs(a[c] - b[c]) + 1e-6);
+    }
+  CHECK(std::find(m.inputFiles.begin(), m.inputFiles.end(), dir + "/m.mtl") != m.inputFiles.end());
+  CHECK(std::find(m.inputFiles.begin(), m.inputFiles.end(), dir + "/ab.png") != m.inputFiles.end());
+  // Without textures the materials are not read: albedo 1, and a missing library is no error.
+  const Mesh f = loadMesh(dir + "/m.obj");
+  CHECK(f.albedo[0] == 1.0f);
+  fs::remove(dir + "/m.mtl");
+  CHECK_NOTHROW(loadMesh(dir + "/m.obj"));
+  try {
+    loadMesh(dir + "/m.obj", MeshAlbedo::Textures);
+    FAIL("no error for the missing library");
+  } catch (const InputError& e) {
+    INFO(e.what());
+    CHECK(e.subject() == dir + "/m.mtl");
+    CHECK(std::string(e.what()).find("give --albedo instead") != std::string::npos);
+  }
+  // A map_Kd on a file whose faces lack vt.
+  writeText(dir + "/m.mtl", "newmtl tex\nmap_Kd tex.png\n");
+  writeText(dir + "/novt.obj", "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl tex\nf 1 2 3\n");
+  expectInputError(dir + "/novt.obj", "has a map_Kd", MeshAlbedo::Textures);
+  // tinyobjloader reads -o as three numbers and took the file name for the third: refused, not
+  // dropped.
+  writeText(dir + "/m.mtl", "newmtl tex\nmap_Kd -o 0 0.5 tex.png\n");
+  try {
+    loadMesh(dir + "/m.obj", MeshAlbedo::Textures);
+    FAIL("no error for a map_Kd without its file");
+  } catch (const InputError& e) {
+    INFO(e.what());
+    CHECK(e.subject() == dir + "/m.mtl");
+    CHECK(std::string(e.what()).find("names no file") != std::string::npos);
+  }
   fs::remove_all(dir);
 }
 

@@ -53,9 +53,9 @@ struct Mesh {
   std::string inputSha256(const std::string& path) const;
 };
 
-// Where a glTF mesh's albedo comes from: its materials' baseColorFactor × COLOR_0, or that times
-// the mean of the material's base colour texture around each vertex (decoded only for the bakes
-// that use the albedo: interreflection, bounces, previews).
+// Where a mesh's albedo comes from: a glTF's baseColorFactor × COLOR_0 (an OBJ's 1), or also its
+// materials' colour textures (glTF's base colour texture; an OBJ's .mtl Kd and map_Kd) around each
+// vertex, read only for the bakes that use the albedo (interreflection, bounces, previews).
 enum class MeshAlbedo { Factors, Textures };
 
 // Loads a .gltf/.glb (tinygltf) or .obj (tinyobjloader) by its extension, fills
@@ -78,8 +78,11 @@ Mesh loadGltf(const std::string& path, MeshAlbedo albedo = MeshAlbedo::Factors);
 // extension, or when the file cannot be read or parsed (loadMesh reports that).
 std::vector<std::string> gltfExternalUris(const std::string& path);
 // OBJ: polygons triangulated; one mesh vertex per distinct (v, vt, vn) triple, as the
-// GAMES202 framework's loader does; albedo 1 (OBJ materials are not read).
-Mesh loadObj(const std::string& path);
+// GAMES202 framework's loader does; albedo 1, and with MeshAlbedo::Textures the area-weighted
+// mean over the faces around the vertex of their material's Kd (1 where it gives none, clamped to
+// [0, 1]; linear) times its map_Kd's mean over the face (as glTF's textures, with -s, -o and
+// -clamp). The .mtl files are read only then; one that cannot be read is an InputError naming it.
+Mesh loadObj(const std::string& path, MeshAlbedo albedo = MeshAlbedo::Factors);
 
 // Replaces zero-length or absent normals with the area- and angle-weighted mean of
 // the normals of the triangles that use the vertex. Vertices used only by

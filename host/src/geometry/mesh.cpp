@@ -61,7 +61,7 @@ Mesh loadMesh(const std::string& path, MeshAlbedo albedo) {
   if (ext == "gltf" || ext == "glb")
     mesh = loadGltf(path, albedo);
   else if (ext == "obj")
-    mesh = loadObj(path);
+    mesh = loadObj(path, albedo);
   else
     throw InputError(path, "unknown mesh format '." + ext + "' (expected .gltf, .glb or .obj)");
   validateMesh(mesh, path);

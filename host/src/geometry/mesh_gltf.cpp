@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 
 #include "io/gltf.h"
+#include "geometry/mesh_texture.h"
 #include "io/image_read.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
@@ -273,48 +274,11 @@ void addPrimitive(const tinygltf::Model& model, int nodeIndex, int meshIndex, in
 
 // --- base colour textures: each vertex's albedo times the texture's mean around it ---
 
-// How a sampler wraps a coordinate (glTF 2.0 sampler wrapS / wrapT).
-enum class Wrap { Repeat, Clamp, Mirror };
-
-Wrap wrapMode(int glMode) {
-  return glMode == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE     ? Wrap::Clamp
-         : glMode == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? Wrap::Mirror
-                                                           : Wrap::Repeat;
+detail::Wrap wrapMode(int glMode) {
+  return glMode == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE     ? detail::Wrap::Clamp
+         : glMode == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? detail::Wrap::Mirror
+                                                           : detail::Wrap::Repeat;
 }
-
-// A decoded base colour texture (linear RGB, the sRGB transfer undone) sampled bilinearly as a
-// renderer samples level 0, with the sampler's wrap modes.
-struct Texture {
-  const detail::Image& img;
-  Wrap wrapS, wrapT;
-
-  double texel(int x, int y, int c) const {
-    const size_t i = 3 * (size_t(y) * size_t(img.width) + size_t(x)) + size_t(c);
-    return img.codes ? img.codeToLinear[img.codes.get()[i]] : img.rgb[i];
-  }
-  // A texel index in [-1, n] onto [0, n).
-  static int wrapIndex(int i, int n, Wrap w) {
-    if (i >= 0 && i < n) return i;
-    if (w == Wrap::Repeat) return (i + n) % n;
-    return i < 0 ? 0 : n - 1;  // clamped, or mirrored at the edge
-  }
-  // A coordinate onto [0, 1] (a repeat onto [0, 1)); any finite value, however large.
-  static double wrapCoord(double u, Wrap w) {
-    if (w == Wrap::Clamp) return std::clamp(u, 0.0, 1.0);
-    if (w == Wrap::Repeat) return u - std::floor(u);
-    const double t = u - 2.0 * std::floor(0.5 * u);  // [0, 2)
-    return t > 1.0 ? 2.0 - t : t;
-  }
-  void sample(double u, double v, double rgb[3]) const {
-    const double fx = wrapCoord(u, wrapS) * img.width - 0.5, fy = wrapCoord(v, wrapT) * img.height - 0.5;
-    const double x0 = std::floor(fx), y0 = std::floor(fy), tx = fx - x0, ty = fy - y0;
-    const int xa = wrapIndex(int(x0), img.width, wrapS), xb = wrapIndex(int(x0) + 1, img.width, wrapS);
-    const int ya = wrapIndex(int(y0), img.height, wrapT), yb = wrapIndex(int(y0) + 1, img.height, wrapT);
-    for (int c = 0; c < 3; ++c)
-      rgb[c] = (1 - ty) * ((1 - tx) * texel(xa, ya, c) + tx * texel(xb, ya, c)) +
-               ty * ((1 - tx) * texel(xa, yb, c) + tx * texel(xb, yb, c));
-  }
-};
 
 // KHR_texture_transform of a texture reference: uv' = T(offset) R(rotation) S(scale) uv, and the
 // texture coordinate set it may name instead of the reference's own.
@@ -346,13 +310,6 @@ UvTransform uvTransform(const tinygltf::TextureInfo& info) {
   return t;
 }
 
-// The most texture samples one image's triangles take together: a triangle takes one a texel of
-// its footprint, at most 64 × 64, and fewer in proportion when the triangles would take more
-// (2^24 bilinear samples, about 0.6 s here, whatever the file asks: 100k triangles that each
-// cover a 64² image nine times took 2.4 s at 2^26).
-constexpr double kTextureSampleBudget = 16777216.0;
-constexpr int kMaxSamplesPerSide = 64;
-
 // The image a material's base colour texture reads, decoded (PNG or JPEG), with its index.
 detail::Image decodeBaseColor(const tinygltf::Model& model, int image, const std::vector<std::vector<unsigned char>>& bytes,
                               const std::string& path) {
@@ -373,11 +330,11 @@ detail::Image decodeBaseColor(const tinygltf::Model& model, int image, const std
   }
 }
 
-// Multiplies each vertex's albedo in `ranges` by its base colour texture's mean around it: the
-// mean of each triangle's texels (bilinear samples at the centroids of its k × k equal sub-
-// triangles, k² about the footprint's texel count), weighted by the triangles' areas in space.
+// Multiplies each vertex's albedo in `ranges` by its base colour texture's mean around it
+// (detail::textureMeans, detail::multiplyAlbedo), decoding each image once.
 void applyBaseColorTextures(const tinygltf::Model& model, const std::vector<std::vector<unsigned char>>& images,
                             std::vector<TexturedRange> ranges, const std::string& path, Mesh& mesh) {
+  if (ranges.empty()) return;
   auto textureOf = [&](const TexturedRange& r) -> const tinygltf::Texture& {
     const int t = model.materials[size_t(r.material)].pbrMetallicRoughness.baseColorTexture.index;
     if (t >= int(model.textures.size()))
@@ -394,106 +351,50 @@ void applyBaseColorTextures(const tinygltf::Model& model, const std::vector<std:
   std::stable_sort(ranges.begin(), ranges.end(), [&](const TexturedRange& a, const TexturedRange& b) {
     return textureOf(a).source < textureOf(b).source;
   });
+  std::vector<std::array<double, 3>> triangleAlbedo(mesh.triangleCount());
+  std::vector<char> has(mesh.triangleCount(), 0);
   for (size_t r0 = 0; r0 < ranges.size();) {
     const int image = textureOf(ranges[r0]).source;
     size_t r1 = r0;
     while (r1 < ranges.size() && textureOf(ranges[r1]).source == image) ++r1;
-    const detail::Image img = decodeBaseColor(model, image, images, path);
-    // Each range's texel-space corners, then the samples each triangle takes.
-    std::vector<std::vector<double>> corners(r1 - r0);
-    std::vector<std::vector<double>> footprint(r1 - r0);
-    double total = 0;
+    std::vector<detail::TextureUse> uses;
     for (size_t r = r0; r < r1; ++r) {
       const TexturedRange& range = ranges[r];
       const tinygltf::TextureInfo& info = model.materials[size_t(range.material)].pbrMetallicRoughness.baseColorTexture;
       const UvTransform tf = uvTransform(info);
       const int set = tf.texCoord >= 0 ? tf.texCoord : info.texCoord;
-      if (set < 0 || size_t(set) >= mesh.uvs.size())
-        throw InputError(path, range.what + ": its base colour texture reads TEXCOORD_" + std::to_string(set) +
-                                   ", which it does not have");
-      auto& uv = corners[r - r0];
-      uv.resize(2 * size_t(range.vertexCount));
-      for (uint32_t v = 0; v < range.vertexCount; ++v) {
-        const double u0 = mesh.uvs[size_t(set)][2 * size_t(range.firstVertex + v)];
-        const double v0 = mesh.uvs[size_t(set)][2 * size_t(range.firstVertex + v) + 1];
-        if (std::isnan(u0) || std::isnan(v0))
-          throw InputError(path, range.what + ": its base colour texture reads TEXCOORD_" + std::to_string(set) +
-                                     ", which it does not have");
-        if (!std::isfinite(u0) || !std::isfinite(v0))
-          throw InputError(path, range.what + " TEXCOORD_" + std::to_string(set) + ": vertex " + std::to_string(v) +
-                                     " is not finite (its base colour texture cannot be sampled there)");
-        uv[2 * v] = tf.m[0] * u0 + tf.m[1] * v0 + tf.m[2];
-        uv[2 * v + 1] = tf.m[3] * u0 + tf.m[4] * v0 + tf.m[5];
-      }
-      auto& n = footprint[r - r0];
-      for (size_t t = 0; t < range.indexCount / 3; ++t) {
-        const uint32_t* c = &mesh.indices[range.firstIndex + 3 * t];
-        const double* a = &uv[2 * (c[0] - range.firstVertex)];
-        const double* b = &uv[2 * (c[1] - range.firstVertex)];
-        const double* d = &uv[2 * (c[2] - range.firstVertex)];
-        const double area = 0.5 * std::abs((b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0])) *
-                            double(img.width) * double(img.height);
-        const double most = double(kMaxSamplesPerSide * kMaxSamplesPerSide);
-        n.push_back(std::isnan(area) ? most : std::clamp(std::ceil(area), 1.0, most));
-        total += n.back();
-      }
-    }
-    const double scale = std::min(1.0, kTextureSampleBudget / total);
-    for (size_t r = r0; r < r1; ++r) {
-      const TexturedRange& range = ranges[r];
+      const std::string lacks = range.what + ": its base colour texture reads TEXCOORD_" + std::to_string(set) +
+                                ", which it does not have";
+      if (set < 0 || size_t(set) >= mesh.uvs.size()) throw InputError(path, lacks);
       const tinygltf::Texture& tex = textureOf(range);
       const tinygltf::Sampler* sampler =
           tex.sampler >= 0 && tex.sampler < int(model.samplers.size()) ? &model.samplers[size_t(tex.sampler)] : nullptr;
-      const Texture texture{img, wrapMode(sampler ? sampler->wrapS : TINYGLTF_TEXTURE_WRAP_REPEAT),
-                            wrapMode(sampler ? sampler->wrapT : TINYGLTF_TEXTURE_WRAP_REPEAT)};
-      const auto& uv = corners[r - r0];
-      // Per vertex: the area-weighted sums, and plain sums for a vertex of zero-area triangles only.
-      std::vector<double> weighted(4 * size_t(range.vertexCount), 0.0), plain(4 * size_t(range.vertexCount), 0.0);
-      for (size_t t = 0; t < range.indexCount / 3; ++t) {
-        const uint32_t* c = &mesh.indices[range.firstIndex + 3 * t];
-        const int k = int(std::ceil(std::sqrt(std::max(1.0, std::floor(footprint[r - r0][t] * scale)))));
-        double mean[3] = {0, 0, 0};
-        // The centroids of the k² sub-triangles, as barycentric weights of corners 1 and 2.
-        auto add = [&](double s, double q) {
-          const double w0 = 1 - s - q;
-          double rgb[3];
-          texture.sample(w0 * uv[2 * (c[0] - range.firstVertex)] + s * uv[2 * (c[1] - range.firstVertex)] +
-                             q * uv[2 * (c[2] - range.firstVertex)],
-                         w0 * uv[2 * (c[0] - range.firstVertex) + 1] + s * uv[2 * (c[1] - range.firstVertex) + 1] +
-                             q * uv[2 * (c[2] - range.firstVertex) + 1],
-                         rgb);
-          for (int ch = 0; ch < 3; ++ch) mean[ch] += rgb[ch];
-        };
-        for (int i = 0; i < k; ++i)
-          for (int j = 0; i + j < k; ++j) {
-            add((i + 1.0 / 3.0) / k, (j + 1.0 / 3.0) / k);
-            if (i + j + 2 <= k) add((i + 2.0 / 3.0) / k, (j + 2.0 / 3.0) / k);
-          }
-        const float* p0 = &mesh.positions[3 * size_t(c[0])];
-        const float* p1 = &mesh.positions[3 * size_t(c[1])];
-        const float* p2 = &mesh.positions[3 * size_t(c[2])];
-        const double e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
-        const double e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
-        const double x = e1[1] * e2[2] - e1[2] * e2[1], y = e1[2] * e2[0] - e1[0] * e2[2], z = e1[0] * e2[1] - e1[1] * e2[0];
-        const double area = 0.5 * std::sqrt(x * x + y * y + z * z);
+      detail::TextureUse use;
+      use.wrapS = wrapMode(sampler ? sampler->wrapS : TINYGLTF_TEXTURE_WRAP_REPEAT);
+      use.wrapT = wrapMode(sampler ? sampler->wrapT : TINYGLTF_TEXTURE_WRAP_REPEAT);
+      for (size_t t = range.firstIndex / 3; t < (range.firstIndex + range.indexCount) / 3; ++t) {
+        use.triangles.push_back(uint32_t(t));
         for (int corner = 0; corner < 3; ++corner) {
-          const size_t v = c[corner] - range.firstVertex;
-          for (int ch = 0; ch < 3; ++ch) {
-            weighted[4 * v + size_t(ch)] += area * mean[ch] / (double(k) * k);
-            plain[4 * v + size_t(ch)] += mean[ch] / (double(k) * k);
-          }
-          weighted[4 * v + 3] += area;
-          plain[4 * v + 3] += 1;
+          const size_t v = mesh.indices[3 * t + size_t(corner)];
+          const double u0 = mesh.uvs[size_t(set)][2 * v], v0 = mesh.uvs[size_t(set)][2 * v + 1];
+          if (std::isnan(u0) || std::isnan(v0)) throw InputError(path, lacks);
+          if (!std::isfinite(u0) || !std::isfinite(v0))
+            throw InputError(path, range.what + " TEXCOORD_" + std::to_string(set) + ": vertex " +
+                                       std::to_string(v - range.firstVertex) +
+                                       " is not finite (its base colour texture cannot be sampled there)");
+          use.uv.push_back(tf.m[0] * u0 + tf.m[1] * v0 + tf.m[2]);
+          use.uv.push_back(tf.m[3] * u0 + tf.m[4] * v0 + tf.m[5]);
         }
       }
-      for (uint32_t v = 0; v < range.vertexCount; ++v) {
-        const double* sum = weighted[4 * v + 3] > 0 ? &weighted[4 * v] : &plain[4 * v];
-        if (sum[3] > 0)
-          for (int ch = 0; ch < 3; ++ch) mesh.albedo[3 * size_t(range.firstVertex + v) + size_t(ch)] *= float(sum[ch] / sum[3]);
-      }
+      uses.push_back(std::move(use));
     }
+    const std::vector<std::array<double, 3>> means = detail::textureMeans(decodeBaseColor(model, image, images, path), uses);
+    size_t k = 0;
+    for (const auto& use : uses)
+      for (uint32_t t : use.triangles) triangleAlbedo[t] = means[k++], has[t] = 1;
     r0 = r1;
   }
+  detail::multiplyAlbedo(mesh, triangleAlbedo, has);
 }
 
 }  // namespace

@@ -1,12 +1,17 @@
 // OBJ loader (tinyobjloader): polygons triangulated, one vertex per (v, vt, vn) triple.
+#include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <future>
+#include <map>
+#include <sstream>
 #include <vector>
 
 #include <tiny_obj_loader.h>
 
+#include "geometry/mesh_texture.h"
 #include "prtbake/atomic_file.h"
 #include "prtbake/error.h"
 #include "prtbake/hash.h"
@@ -91,9 +96,127 @@ void checkObjText(const std::string& path, const std::string& text) {
   }
 }
 
+// The material libraries an OBJ names (`mtllib` lines, names split at blanks as tinyobjloader
+// splits them), read whole: their text joined, each material's file (for its map_Kd) and
+// whether it gives Kd. A library that cannot be read is an InputError naming it.
+struct MaterialLibraries {
+  std::string text;
+  std::vector<std::string> files;
+  struct Material {
+    std::string library;
+    bool kd = false, mapKd = false;  // whether it has a Kd line, a map_Kd line
+  };
+  std::map<std::string, Material> materials;
+};
+
+std::string directoryOf(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? "." : path.substr(0, slash);
+}
+
+MaterialLibraries readMaterialLibraries(const std::string& path, const std::string& objText) {
+  MaterialLibraries libs;
+  std::istringstream lines(objText);
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream words(line);
+    std::string key;
+    if (!(words >> key) || key != "mtllib") continue;
+    for (std::string name; words >> name;) {
+      std::replace(name.begin(), name.end(), '\\', '/');
+      const std::string file = directoryOf(path) + "/" + name;
+      if (std::find(libs.files.begin(), libs.files.end(), file) != libs.files.end()) continue;
+      std::string text;
+      try {
+        text = readFile(file);
+      } catch (const InputError& e) {
+        throw InputError(file, e.detail() + " (the mtllib of " + path +
+                                   ", whose materials give the albedo of this bake: give --albedo instead)");
+      }
+      libs.files.push_back(file);
+      libs.text += text + "\n";
+      std::istringstream mtl(text);
+      std::string current;
+      for (std::string l; std::getline(mtl, l);) {
+        std::istringstream w(l);
+        std::string k;
+        if (!(w >> k)) continue;
+        if (k == "newmtl") {
+          std::getline(w >> std::ws, current);
+          while (!current.empty() && (current.back() == '\r' || current.back() == ' ')) current.pop_back();
+          libs.materials.emplace(current, MaterialLibraries::Material{file});
+        } else if ((k == "Kd" || k == "map_Kd") && libs.materials.count(current)) {
+          (k == "Kd" ? libs.materials[current].kd : libs.materials[current].mapKd) = true;
+        }
+      }
+    }
+  }
+  return libs;
+}
+
+// Each triangle's albedo from its face's material (Kd, 1 where the material gives none, clamped
+// to [0, 1], times the mean of its map_Kd around the triangle; 1 for a face without a material),
+// then each vertex's as their area-weighted mean (detail::multiplyAlbedo).
+void applyObjMaterials(const std::string& path, const MaterialLibraries& libs,
+                       const std::vector<tinyobj::material_t>& materials, const std::vector<int>& triangleMaterial,
+                       Mesh& mesh) {
+  std::vector<std::array<double, 3>> albedo(mesh.triangleCount(), {1.0, 1.0, 1.0});
+  std::map<std::string, std::vector<int>> byTexture;  // texture file -> materials
+  for (size_t m = 0; m < materials.size(); ++m) {
+    const auto lib = libs.materials.find(materials[m].name);
+    // tinyobjloader reads -o and -s as three numbers: with fewer, it takes the file name for one.
+    if (materials[m].diffuse_texname.empty() && lib != libs.materials.end() && lib->second.mapKd)
+      throw InputError(lib->second.library, "material '" + materials[m].name +
+                                                "': its map_Kd names no file as read (give -o and -s three numbers each)");
+    if (materials[m].diffuse_texname.empty()) continue;
+    std::string name = materials[m].diffuse_texname;
+    std::replace(name.begin(), name.end(), '\\', '/');
+    byTexture[directoryOf(lib == libs.materials.end() ? path : lib->second.library) + "/" + name].push_back(int(m));
+  }
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const int m = triangleMaterial[t];
+    if (m < 0 || size_t(m) >= materials.size()) continue;
+    const auto lib = libs.materials.find(materials[size_t(m)].name);
+    if (lib != libs.materials.end() && lib->second.kd)
+      for (size_t c = 0; c < 3; ++c) albedo[t][c] = std::clamp(double(materials[size_t(m)].diffuse[c]), 0.0, 1.0);
+  }
+  for (const auto& [file, users] : byTexture) {
+    std::vector<detail::TextureUse> uses;
+    for (int m : users) {
+      const tinyobj::texture_option_t& opt = materials[size_t(m)].diffuse_texopt;
+      detail::TextureUse use;
+      use.wrapS = use.wrapT = opt.clamp ? detail::Wrap::Clamp : detail::Wrap::Repeat;
+      for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        if (triangleMaterial[t] != m) continue;
+        if (mesh.uvs[0].empty())
+          throw InputError(path, mesh.uvMissing[0] + ", and material '" + materials[size_t(m)].name +
+                                     "' has a map_Kd (its texture is read at every face's vt)");
+        use.triangles.push_back(uint32_t(t));
+        for (int corner = 0; corner < 3; ++corner) {
+          const size_t v = mesh.indices[3 * t + size_t(corner)];
+          // -s and -o act on OBJ's (u, v), v up; the mesh keeps 1 - v.
+          const double u = mesh.uvs[0][2 * v], vUp = 1.0 - double(mesh.uvs[0][2 * v + 1]);
+          use.uv.push_back(u * opt.scale[0] + opt.origin_offset[0]);
+          use.uv.push_back(1.0 - (vUp * opt.scale[1] + opt.origin_offset[1]));
+        }
+      }
+      uses.push_back(std::move(use));
+    }
+    mesh.inputFiles.push_back(file);
+    const std::vector<std::array<double, 3>> means =
+        detail::textureMeans(detail::readImage(file, detail::LdrDecode::Srgb, /*compact=*/true), uses);
+    size_t k = 0;
+    for (const auto& use : uses)
+      for (uint32_t t : use.triangles) {
+        for (size_t c = 0; c < 3; ++c) albedo[t][c] *= means[k][c];
+        ++k;
+      }
+  }
+  detail::multiplyAlbedo(mesh, albedo, std::vector<char>(mesh.triangleCount(), 1));
+}
+
 }  // namespace
 
-Mesh loadObj(const std::string& path) {
+Mesh loadObj(const std::string& path, MeshAlbedo albedo) {
   const std::string text = readFile(path);  // a missing or unreadable file is an InputError naming it
   // The bytes' SHA-256 (for the outputs' provenance) on another thread while they are parsed.
   auto hash = std::async(std::launch::async, [&text] { return sha256Hex(text.data(), text.size()); });
@@ -102,8 +225,9 @@ Mesh loadObj(const std::string& path) {
   config.triangulate = true;
   config.vertex_color = false;
   tinyobj::ObjReader reader;
-  // From memory, with no material text: materials are not used, no .mtl file is read.
-  if (!reader.ParseFromString(text, std::string(), config)) {
+  // From memory: the material libraries only where the albedo is read from them.
+  const MaterialLibraries libs = albedo == MeshAlbedo::Textures ? readMaterialLibraries(path, text) : MaterialLibraries{};
+  if (!reader.ParseFromString(text, libs.text, config)) {
     std::string err = reader.Error();
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
     throw InputError(path, "cannot parse OBJ: " + (err.empty() ? std::string("unknown error") : err));
@@ -112,7 +236,9 @@ Mesh loadObj(const std::string& path) {
   Mesh mesh;
   mesh.sourcePath = path;
   mesh.inputFiles = {path};
+  mesh.inputFiles.insert(mesh.inputFiles.end(), libs.files.begin(), libs.files.end());
   mesh.format = Mesh::Format::Obj;
+  std::vector<int> triangleMaterial;  // per triangle: its face's material (-1: none), where materials are read
   const size_t np = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3, nt = attrib.texcoords.size() / 2;
   // One mesh vertex per distinct (position, texcoord, normal) triple, numbered in order of
   // first use: the triples met so far per position, as linked lists.
@@ -157,6 +283,8 @@ Mesh loadObj(const std::string& path) {
         }
         mesh.indices.push_back(corners[at].id);
       }
+      if (albedo == MeshAlbedo::Textures)
+        triangleMaterial.push_back(f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1);
       offset += 3;
     }
   }
@@ -169,6 +297,8 @@ Mesh loadObj(const std::string& path) {
     const double len = std::sqrt(double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2]);
     for (int c = 0; c < 3; ++c) n[c] = len > 1e-12 && std::isfinite(len) ? float(n[c] / len) : 0.0f;
   }
+  if (albedo == MeshAlbedo::Textures && !reader.GetMaterials().empty())
+    applyObjMaterials(path, libs, reader.GetMaterials(), triangleMaterial, mesh);
   return mesh;
 }
 
