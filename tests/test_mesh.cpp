@@ -226,6 +226,11 @@ TEST_CASE("glTF loader: the base colour texture's mean around each vertex multip
                                                 R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})",
                                                 R"({"extensions": {"KHR_texture_basisu": {"source": 0}}})", image);
   expectInputError(noSource, "has no PNG or JPEG image", MeshAlbedo::Textures);
+  const std::string far = makeTexturedGltf(
+      dir + "/far.gltf", {{0, 1}},
+      R"({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [1e308, 0], "scale": [1e308, 1]}}}}})",
+      R"({"source": 0})", image);
+  expectInputError(far, "beyond finite numbers", MeshAlbedo::Textures);
   fs::remove_all(dir);
 }
 
@@ -306,6 +311,15 @@ TEST_CASE("OBJ loader: the faces' .mtl Kd and map_Kd give the albedo", "[mesh]")
   writeText(dir + "/m.mtl", "newmtl tex\nmap_Kd tex.png\n");
   writeText(dir + "/novt.obj", "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl tex\nf 1 2 3\n");
   expectInputError(dir + "/novt.obj", "has a map_Kd", MeshAlbedo::Textures);
+  writeText(dir + "/m.mtl", "newmtl tex\nmap_Kd -s 1e308 1 1 -o 1e308 0 0 tex.png\n");
+  try {
+    loadMesh(dir + "/m.obj", MeshAlbedo::Textures);
+    FAIL("no error for a texture coordinate beyond finite numbers");
+  } catch (const InputError& e) {
+    INFO(e.what());
+    CHECK(e.subject() == dir + "/m.mtl");
+    CHECK(std::string(e.what()).find("not finite") != std::string::npos);
+  }
   // tinyobjloader reads -o as three numbers and took the file name for the third: refused, not
   // dropped.
   writeText(dir + "/m.mtl", "newmtl tex\nmap_Kd -o 0 0.5 tex.png\n");

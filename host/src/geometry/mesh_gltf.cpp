@@ -384,6 +384,9 @@ void applyBaseColorTextures(const tinygltf::Model& model, const std::vector<std:
                                        " is not finite (its base colour texture cannot be sampled there)");
           use.uv.push_back(tf.m[0] * u0 + tf.m[1] * v0 + tf.m[2]);
           use.uv.push_back(tf.m[3] * u0 + tf.m[4] * v0 + tf.m[5]);
+          if (!std::isfinite(use.uv.end()[-2]) || !std::isfinite(use.uv.back()))
+            throw InputError(path, range.what + ": KHR_texture_transform takes TEXCOORD_" + std::to_string(set) +
+                                       " of vertex " + std::to_string(v - range.firstVertex) + " beyond finite numbers");
         }
       }
       uses.push_back(std::move(use));

@@ -161,6 +161,10 @@ void applyObjMaterials(const std::string& path, const MaterialLibraries& libs,
                        Mesh& mesh) {
   std::vector<std::array<double, 3>> albedo(mesh.triangleCount(), {1.0, 1.0, 1.0});
   std::map<std::string, std::vector<int>> byTexture;  // texture file -> materials
+  auto libraryOf = [&](const std::string& material) {  // the .mtl that defines it (else the OBJ)
+    const auto lib = libs.materials.find(material);
+    return lib == libs.materials.end() ? path : lib->second.library;
+  };
   for (size_t m = 0; m < materials.size(); ++m) {
     const auto lib = libs.materials.find(materials[m].name);
     // tinyobjloader reads -o and -s as three numbers: with fewer, it takes the file name for one.
@@ -170,7 +174,7 @@ void applyObjMaterials(const std::string& path, const MaterialLibraries& libs,
     if (materials[m].diffuse_texname.empty()) continue;
     std::string name = materials[m].diffuse_texname;
     std::replace(name.begin(), name.end(), '\\', '/');
-    byTexture[directoryOf(lib == libs.materials.end() ? path : lib->second.library) + "/" + name].push_back(int(m));
+    byTexture[directoryOf(libraryOf(materials[m].name)) + "/" + name].push_back(int(m));
   }
   for (size_t t = 0; t < mesh.triangleCount(); ++t) {
     const int m = triangleMaterial[t];
@@ -179,24 +183,32 @@ void applyObjMaterials(const std::string& path, const MaterialLibraries& libs,
     if (lib != libs.materials.end() && lib->second.kd)
       for (size_t c = 0; c < 3; ++c) albedo[t][c] = std::clamp(double(materials[size_t(m)].diffuse[c]), 0.0, 1.0);
   }
+  std::vector<std::vector<uint32_t>> trianglesOf(materials.size());  // one pass, whatever the count
+  for (size_t t = 0; t < mesh.triangleCount(); ++t)
+    if (triangleMaterial[t] >= 0 && size_t(triangleMaterial[t]) < materials.size())
+      trianglesOf[size_t(triangleMaterial[t])].push_back(uint32_t(t));
   for (const auto& [file, users] : byTexture) {
     std::vector<detail::TextureUse> uses;
     for (int m : users) {
       const tinyobj::texture_option_t& opt = materials[size_t(m)].diffuse_texopt;
       detail::TextureUse use;
       use.wrapS = use.wrapT = opt.clamp ? detail::Wrap::Clamp : detail::Wrap::Repeat;
-      for (size_t t = 0; t < mesh.triangleCount(); ++t) {
-        if (triangleMaterial[t] != m) continue;
-        if (mesh.uvs[0].empty())
-          throw InputError(path, mesh.uvMissing[0] + ", and material '" + materials[size_t(m)].name +
-                                     "' has a map_Kd (its texture is read at every face's vt)");
-        use.triangles.push_back(uint32_t(t));
+      if (!trianglesOf[size_t(m)].empty() && mesh.uvs[0].empty())
+        throw InputError(path, mesh.uvMissing[0] + ", and material '" + materials[size_t(m)].name +
+                                   "' has a map_Kd (its texture is read at every face's vt)");
+      for (uint32_t t : trianglesOf[size_t(m)]) {
+        use.triangles.push_back(t);
         for (int corner = 0; corner < 3; ++corner) {
-          const size_t v = mesh.indices[3 * t + size_t(corner)];
+          const size_t v = mesh.indices[3 * size_t(t) + size_t(corner)];
           // -s and -o act on OBJ's (u, v), v up; the mesh keeps 1 - v.
           const double u = mesh.uvs[0][2 * v], vUp = 1.0 - double(mesh.uvs[0][2 * v + 1]);
-          use.uv.push_back(u * opt.scale[0] + opt.origin_offset[0]);
-          use.uv.push_back(1.0 - (vUp * opt.scale[1] + opt.origin_offset[1]));
+          const double su = u * opt.scale[0] + opt.origin_offset[0], sv = 1.0 - (vUp * opt.scale[1] + opt.origin_offset[1]);
+          if (!std::isfinite(su) || !std::isfinite(sv))
+            throw InputError(libraryOf(materials[size_t(m)].name), "material '" + materials[size_t(m)].name +
+                                                                       "': its map_Kd's -s and -o give a face corner "
+                                                                       "a texture coordinate that is not finite");
+          use.uv.push_back(su);
+          use.uv.push_back(sv);
         }
       }
       uses.push_back(std::move(use));
